@@ -1,0 +1,22 @@
+#include "app_config.hpp"
+
+#include "cairn/core/log.hpp"
+
+namespace cairn::app {
+
+void CommonOptions::add_to(CLI::App& cmd) {
+  cmd.add_option("--config", config_file, "YAML configuration file (see `cairn config --dump`)");
+  cmd.add_option("--set", overrides, "override one parameter, e.g. --set segmentation.ground.d_plane=0.08")
+      ->take_all();
+  cmd.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
+}
+
+AppConfig CommonOptions::load() const {
+  set_log_level(log_level);
+  AppConfig cfg;
+  if (!config_file.empty()) config::load_yaml_file(cfg, config_file);
+  for (const auto& o : overrides) config::apply_override(cfg, o);
+  return cfg;
+}
+
+}  // namespace cairn::app

@@ -1,0 +1,42 @@
+#pragma once
+// The effective configuration of every stage, as `cairn config --dump` prints it.
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "cairn/core/config.hpp"
+#include "cairn/core/normals.hpp"
+#include "cairn/core/voxel_grid.hpp"
+#include "cairn/segmentation/segmenter.hpp"
+
+namespace cairn::app {
+
+struct AppConfig {
+  VoxelGridConfig voxel;
+  NormalConfig normals;
+  SegmentationConfig segmentation;
+
+  template <class V>
+  void visit(V& v) {
+    v("voxel", voxel, "voxel-grid downsampling (Sec. 4.2, Table 3)");
+    v("normals", normals, "PCA normal estimation");
+    v("segmentation", segmentation, "map segmentation (Sec. 4.3)");
+  }
+};
+
+/// Options every subcommand shares: --config FILE, --set key.path=value, --log-level.
+struct CommonOptions {
+  std::string config_file;
+  std::vector<std::string> overrides;
+  std::string log_level = "info";
+  void add_to(CLI::App& cmd);
+  /// Defaults, then the YAML file, then the --set overrides (in order). Throws ConfigError.
+  [[nodiscard]] AppConfig load() const;
+};
+
+/// Exit codes of the command line contract.
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitBadInput = 2;
+inline constexpr int kExitNoResult = 3;
+
+}  // namespace cairn::app

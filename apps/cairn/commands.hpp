@@ -1,0 +1,11 @@
+#pragma once
+#include <CLI/CLI.hpp>
+#include <functional>
+
+namespace cairn::app {
+// Each subcommand registers itself and, when chosen, sets `run` to its action.
+void add_segment_command(CLI::App& app, std::function<int()>& run);
+void add_config_command(CLI::App& app, std::function<int()>& run);
+void add_info_command(CLI::App& app, std::function<int()>& run);
+void add_demo_command(CLI::App& app, std::function<int()>& run);
+}  // namespace cairn::app

@@ -1,0 +1,24 @@
+# Warnings and sanitizers per target, never as global flags.
+function(cairn_target_options target)
+  # -Wno-missing-field-initializers: GCC 12 warns on designated initializers that rely on member
+  # defaults ({.res_voxel = 0.05}), which is the style of our config structs.
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor
+                                           -Wno-missing-field-initializers)
+  if(CAIRN_SANITIZE)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
+                                             -fno-sanitize-recover=undefined)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
+endfunction()
+
+# cairn_add_library(name SOURCES ... DEPS ...): one static library per stage folder.
+function(cairn_add_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  add_library(${name} STATIC ${ARG_SOURCES})
+  target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR}/src)
+  target_link_libraries(${name} PUBLIC ${ARG_DEPS})
+  cairn_target_options(${name})
+  if(CAIRN_SANITIZE)
+    target_link_options(${name} INTERFACE -fsanitize=address,undefined)
+  endif()
+endfunction()

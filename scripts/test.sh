@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Second README command: build everything (Release) and run the whole test suite.
+#   scripts/test.sh            Release build in build/, all tests
+#   scripts/test.sh --asan     AddressSanitizer + UBSan build in build-asan/, all tests
+set -euo pipefail
+cd "$(dirname "$0")/.."
+dir=build
+flags=(-DCMAKE_BUILD_TYPE=Release)
+if [ "${1:-}" = "--asan" ]; then
+  dir=build-asan
+  flags=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DCAIRN_SANITIZE=ON -DCAIRN_BUILD_BENCH=OFF)
+fi
+jobs=$(nproc)
+cmake -S . -B "$dir" -G Ninja "${flags[@]}"
+cmake --build "$dir" -j "$jobs"
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
+export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+ctest --test-dir "$dir" --output-on-failure -j "$jobs"

@@ -1,0 +1,103 @@
+#include "cairn/core/kdtree.hpp"
+
+#include <algorithm>
+#include <nanoflann.hpp>
+#include <numeric>
+
+namespace cairn {
+namespace {
+
+struct SpanAdaptor {
+  std::span<const Vec3f> pts;
+  [[nodiscard]] std::size_t kdtree_get_point_count() const { return pts.size(); }
+  [[nodiscard]] float kdtree_get_pt(std::size_t i, std::size_t dim) const { return pts[i][int(dim)]; }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const {
+    return false;
+  }
+};
+
+using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, SpanAdaptor>,
+                                                  SpanAdaptor, 3, std::uint32_t>;
+
+/// nanoflann result set that forwards every hit to a callback.
+struct CallbackResultSet {
+  float radius_sq;
+  void* ctx;
+  void (*visit)(void*, std::uint32_t, float);
+  std::size_t count = 0;
+  void init() {}
+  [[nodiscard]] std::size_t size() const { return count; }
+  [[nodiscard]] bool full() const { return true; }
+  bool addPoint(float d2, std::uint32_t i) {
+    if (d2 < radius_sq) {
+      visit(ctx, i, d2);
+      ++count;
+    }
+    return true;
+  }
+  [[nodiscard]] float worstDist() const { return radius_sq; }
+};
+
+}  // namespace
+
+struct KdTree::Impl {
+  SpanAdaptor adaptor;
+  Index index;
+  Impl(std::span<const Vec3f> p, int leaf)
+      : adaptor{p}, index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf))) {
+    index.buildIndex();
+  }
+};
+
+KdTree::KdTree(std::span<const Vec3f> points, int leaf_size)
+    : points_(points), impl_(std::make_unique<Impl>(points, leaf_size)) {}
+KdTree::~KdTree() = default;
+KdTree::KdTree(KdTree&&) noexcept = default;
+KdTree& KdTree::operator=(KdTree&&) noexcept = default;
+
+void KdTree::knn(const Vec3f& query, std::size_t k, Neighbors& out) const {
+  k = std::min(k, points_.size());
+  out.indices.resize(k);
+  out.sq_dists.resize(k);
+  if (k == 0) return;
+  const auto found = impl_->index.knnSearch(query.data(), k, out.indices.data(), out.sq_dists.data());
+  out.indices.resize(found);
+  out.sq_dists.resize(found);
+}
+
+void KdTree::radius_visit(const Vec3f& query, float radius, void* ctx,
+                          void (*visit)(void*, std::uint32_t, float)) const {
+  if (points_.empty()) return;
+  CallbackResultSet rs{radius * radius, ctx, visit};
+  impl_->index.findNeighbors(rs, query.data(), nanoflann::SearchParams(0, 0.0f, false));
+}
+
+void KdTree::radius(const Vec3f& query, float radius, Neighbors& out, bool sorted) const {
+  out.clear();
+  for_each_in_radius(query, radius, [&](std::uint32_t i, float d2) {
+    out.indices.push_back(i);
+    out.sq_dists.push_back(d2);
+  });
+  if (!sorted || out.size() < 2) return;
+  std::vector<std::uint32_t> order(out.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(),
+            [&](auto a, auto b) { return out.sq_dists[a] < out.sq_dists[b]; });
+  Neighbors s;
+  for (auto o : order) {
+    s.indices.push_back(out.indices[o]);
+    s.sq_dists.push_back(out.sq_dists[o]);
+  }
+  out = std::move(s);
+}
+
+std::uint32_t KdTree::nearest(const Vec3f& query, float* sq_dist) const {
+  std::uint32_t idx = 0;
+  float d2 = 0.0f;
+  impl_->index.knnSearch(query.data(), 1, &idx, &d2);
+  if (sq_dist) *sq_dist = d2;
+  return idx;
+}
+
+}  // namespace cairn

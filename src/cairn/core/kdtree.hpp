@@ -1,0 +1,64 @@
+#pragma once
+// The one kd-tree of cairn: nanoflann over a span of positions, no copy of the points.
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "cairn/core/point_cloud.hpp"
+
+namespace cairn {
+
+/// Result of a neighbour query: indices into the indexed span and squared distances.
+struct Neighbors {
+  std::vector<std::uint32_t> indices;
+  std::vector<float> sq_dists;
+  [[nodiscard]] std::size_t size() const { return indices.size(); }
+  void clear() {
+    indices.clear();
+    sq_dists.clear();
+  }
+};
+
+/// Static 3-D kd-tree. The indexed points must outlive the tree and stay unchanged.
+/// Queries are const and thread-safe.
+class KdTree {
+ public:
+  static constexpr int kDefaultLeafSize = 16;
+  explicit KdTree(std::span<const Vec3f> points, int leaf_size = kDefaultLeafSize);
+  ~KdTree();
+  KdTree(KdTree&&) noexcept;
+  KdTree& operator=(KdTree&&) noexcept;
+  KdTree(const KdTree&) = delete;
+  KdTree& operator=(const KdTree&) = delete;
+
+  [[nodiscard]] std::size_t size() const { return points_.size(); }
+  [[nodiscard]] std::span<const Vec3f> points() const { return points_; }
+
+  /// k nearest neighbours, sorted by distance (fewer if the tree has fewer points).
+  void knn(const Vec3f& query, std::size_t k, Neighbors& out) const;
+  /// All neighbours with distance < radius; sorted by distance when `sorted`.
+  void radius(const Vec3f& query, float radius, Neighbors& out, bool sorted = false) const;
+  /// Index of the nearest point (the tree must not be empty); squared distance in *sq_dist.
+  [[nodiscard]] std::uint32_t nearest(const Vec3f& query, float* sq_dist = nullptr) const;
+
+  /// Calls f(index, sq_dist) for each neighbour with distance < radius (no allocation).
+  template <class F>
+  void for_each_in_radius(const Vec3f& query, float radius, F&& f) const;
+
+ private:
+  struct Impl;
+  void radius_visit(const Vec3f& query, float radius, void* ctx,
+                    void (*visit)(void*, std::uint32_t, float)) const;
+  std::span<const Vec3f> points_;
+  std::unique_ptr<Impl> impl_;
+};
+
+template <class F>
+void KdTree::for_each_in_radius(const Vec3f& query, float radius, F&& f) const {
+  radius_visit(query, radius, &f, [](void* ctx, std::uint32_t i, float d2) {
+    (*static_cast<std::remove_reference_t<F>*>(ctx))(i, d2);
+  });
+}
+
+}  // namespace cairn

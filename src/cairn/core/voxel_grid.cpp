@@ -1,0 +1,127 @@
+#include "cairn/core/voxel_grid.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <cmath>
+#include <map>
+
+#include "cairn/core/error.hpp"
+
+namespace cairn {
+namespace {
+
+constexpr int kBitsPerAxis = 21;  // 3 × 21 bits packed into one 64-bit key
+constexpr std::int64_t kMaxCells = std::int64_t{1} << kBitsPerAxis;
+
+struct KeyedIndex {
+  std::uint64_t key;
+  std::uint32_t index;
+  bool operator<(const KeyedIndex& o) const { return key < o.key || (key == o.key && index < o.index); }
+};
+
+// Voxel coordinate as PCL computes it: floor(p * inverse_leaf) in float.
+Eigen::Array3i cell_of(const Vec3f& p, float inv_leaf) {
+  return {int(std::floor(p.x() * inv_leaf)), int(std::floor(p.y() * inv_leaf)),
+          int(std::floor(p.z() * inv_leaf))};
+}
+
+}  // namespace
+
+VoxelPartition voxelize(std::span<const Vec3f> points, double leaf) {
+  if (!(leaf > 0.0)) throw ConfigError("voxel grid: leaf size must be > 0, got " + std::to_string(leaf));
+  VoxelPartition part;
+  if (points.empty()) return part;
+  const float inv_leaf = 1.0f / float(leaf);
+  const Aabb box = bounds(points);
+  const Eigen::Array3i lo = cell_of(box.min, inv_leaf);
+  const Eigen::Array3i hi = cell_of(box.max, inv_leaf);
+  for (int a = 0; a < 3; ++a)
+    if (std::int64_t(hi[a]) - lo[a] + 1 >= kMaxCells)
+      throw ConfigError("voxel grid: leaf size " + std::to_string(leaf) +
+                        " m is too small for the cloud extent (more than 2^21 voxels per axis)");
+
+  std::vector<KeyedIndex> keyed(points.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 4096), [&](const auto& r) {
+    for (auto i = r.begin(); i != r.end(); ++i) {
+      const Eigen::Array3i c = cell_of(points[i], inv_leaf) - lo;
+      // x fastest, as PCL's divb_mul ordering: key = x + y·nx + z·nx·ny (here: bit-packed z,y,x)
+      keyed[i] = {(std::uint64_t(c[2]) << (2 * kBitsPerAxis)) | (std::uint64_t(c[1]) << kBitsPerAxis) |
+                      std::uint64_t(c[0]),
+                  std::uint32_t(i)};
+    }
+  });
+  tbb::parallel_sort(keyed.begin(), keyed.end());
+
+  part.order.resize(keyed.size());
+  part.offsets.push_back(0);
+  for (std::size_t i = 0; i < keyed.size(); ++i) {
+    part.order[i] = keyed[i].index;
+    if (i > 0 && keyed[i].key != keyed[i - 1].key) part.offsets.push_back(std::uint32_t(i));
+  }
+  part.offsets.push_back(std::uint32_t(keyed.size()));
+  return part;
+}
+
+namespace {
+
+template <class T, class Acc>
+T average(std::span<const std::uint32_t> idx, const std::vector<T>& values, Acc zero) {
+  Acc sum = zero;
+  for (auto i : idx) sum += Acc(values[i]);
+  return T(sum / double(idx.size()));
+}
+
+std::int32_t majority(std::span<const std::uint32_t> idx, const std::vector<std::int32_t>& labels) {
+  std::map<std::int32_t, int> votes;
+  for (auto i : idx) ++votes[labels[i]];
+  return std::max_element(votes.begin(), votes.end(),
+                          [](const auto& a, const auto& b) { return a.second < b.second; })
+      ->first;
+}
+
+}  // namespace
+
+PointCloud voxel_downsample(const PointCloud& cloud, const VoxelGridConfig& config) {
+  cloud.check_consistent("voxel_downsample input");
+  const VoxelPartition part = voxelize(cloud.points, config.res_voxel);
+  std::vector<std::uint32_t> kept;  // voxels with at least n_min points
+  for (std::size_t v = 0; v < part.num_voxels(); ++v)
+    if (part.voxel(v).size() >= std::size_t(std::max(config.n_min, 1))) kept.push_back(std::uint32_t(v));
+
+  PointCloud out;
+  out.origin = cloud.origin;
+  const auto n = kept.size();
+  out.points.resize(n);
+  if (cloud.has_normals()) out.normals.resize(n);
+  if (cloud.has_colors()) out.colors.resize(n);
+  if (cloud.has_times()) out.times.resize(n);
+  if (cloud.has_labels()) out.labels.resize(n);
+  for (const auto& f : cloud.fields) out.fields.push_back({f.name, std::vector<float>(n)});
+
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& r) {
+    for (auto o = r.begin(); o != r.end(); ++o) {
+      const auto idx = part.voxel(kept[o]);
+      out.points[o] = centroid(cloud.points, idx);
+      if (cloud.has_normals()) {
+        Vec3f s = Vec3f::Zero();
+        for (auto i : idx) s += cloud.normals[i];
+        out.normals[o] = s.norm() > 0.0f ? Vec3f(s.normalized()) : Vec3f::Zero();
+      }
+      if (cloud.has_colors()) {
+        Eigen::Vector3d s = Eigen::Vector3d::Zero();
+        for (auto i : idx) s += Eigen::Vector3d(cloud.colors[i].r, cloud.colors[i].g, cloud.colors[i].b);
+        s = (s / double(idx.size())).array().round();
+        out.colors[o] = {std::uint8_t(s.x()), std::uint8_t(s.y()), std::uint8_t(s.z())};
+      }
+      if (cloud.has_times()) out.times[o] = average(idx, cloud.times, 0.0);
+      if (cloud.has_labels()) out.labels[o] = majority(idx, cloud.labels);
+      for (std::size_t f = 0; f < cloud.fields.size(); ++f)
+        out.fields[f].values[o] = average(idx, cloud.fields[f].values, 0.0);
+    }
+  });
+  return out;
+}
+
+}  // namespace cairn

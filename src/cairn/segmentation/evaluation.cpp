@@ -1,0 +1,61 @@
+#include "cairn/segmentation/evaluation.hpp"
+
+#include <map>
+
+#include "cairn/core/error.hpp"
+
+namespace cairn {
+
+std::size_t SegmentationScore::found(double complete) const {
+  std::map<std::int32_t, int> owners;
+  for (const auto& o : objects) ++owners[o.best_segment];
+  std::size_t n = 0;
+  for (const auto& o : objects)
+    n += o.completeness() >= complete && o.significant_segments == 1 && owners[o.best_segment] == 1;
+  return n;
+}
+
+nlohmann::json SegmentationScore::to_json(double complete) const {
+  nlohmann::json j{{"objects", objects.size()},
+                   {"found", found(complete)},
+                   {"segments", segments},
+                   {"terrain_segments", terrain_segments},
+                   {"merged_segments", merged}};
+  j["completeness"] = nlohmann::json::array();
+  for (const auto& o : objects) j["completeness"].push_back(o.completeness());
+  return j;
+}
+
+SegmentationScore score_segmentation(const std::vector<std::int32_t>& labels, const std::vector<std::int32_t>& truth,
+                                     int num_objects, double split_fraction) {
+  if (labels.size() != truth.size())
+    throw InputError("score_segmentation: " + std::to_string(labels.size()) + " labels for " +
+                     std::to_string(truth.size()) + " truth values");
+  SegmentationScore s;
+  s.objects.resize(std::size_t(std::max(num_objects, 0)));
+  std::map<std::pair<std::int32_t, std::int32_t>, std::size_t> overlap;  // (object, segment)
+  std::map<std::int32_t, std::pair<std::size_t, std::size_t>> seg;       // size, terrain points
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    const bool object = truth[i] >= 0 && truth[i] < num_objects;
+    if (object) ++s.objects[std::size_t(truth[i])].points;
+    if (labels[i] < 0) continue;
+    auto& [size, terrain] = seg[labels[i]];
+    ++size;
+    terrain += !object;
+    if (object) ++overlap[{truth[i], labels[i]}];
+  }
+  for (const auto& [key, n] : overlap) {
+    ObjectScore& o = s.objects[std::size_t(key.first)];
+    if (n > o.best_overlap) o.best_overlap = n, o.best_segment = key.second;
+    if (double(n) >= split_fraction * double(o.points)) ++o.significant_segments;
+  }
+  s.segments = seg.size();
+  for (const auto& [id, st] : seg) s.terrain_segments += st.second * 2 > st.first;
+  std::map<std::int32_t, int> owners;
+  for (const auto& o : s.objects)
+    if (o.best_segment >= 0) ++owners[o.best_segment];
+  for (const auto& [id, n] : owners) s.merged += n > 1;
+  return s;
+}
+
+}  // namespace cairn

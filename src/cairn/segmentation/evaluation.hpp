@@ -1,0 +1,33 @@
+#pragma once
+// Scoring a segmentation against per-point ground truth (simulator labels: -1 terrain, k object).
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+namespace cairn {
+
+struct ObjectScore {
+  std::size_t points = 0;              // true points of the object
+  std::size_t best_overlap = 0;        // of them, in the segment holding most of them
+  std::int32_t best_segment = -1;
+  std::size_t significant_segments = 0;  // segments holding >= split_fraction of the object
+  [[nodiscard]] double completeness() const { return points ? double(best_overlap) / double(points) : 0.0; }
+};
+
+struct SegmentationScore {
+  std::vector<ObjectScore> objects;
+  std::size_t segments = 0;          // object segments produced
+  std::size_t terrain_segments = 0;  // segments whose majority is terrain (truth < 0)
+  std::size_t merged = 0;            // segments that are the best segment of several objects
+  /// Objects found as exactly one segment holding >= `complete` of their points, not merged.
+  [[nodiscard]] std::size_t found(double complete = 0.95) const;
+  [[nodiscard]] nlohmann::json to_json(double complete = 0.95) const;
+};
+
+/// `labels`: segment id per point (negative: none); `truth`: object index per point (negative:
+/// terrain/none); `num_objects`: number of true objects.
+[[nodiscard]] SegmentationScore score_segmentation(const std::vector<std::int32_t>& labels,
+                                                   const std::vector<std::int32_t>& truth, int num_objects,
+                                                   double split_fraction = 0.05);
+
+}  // namespace cairn

@@ -1,0 +1,238 @@
+#include "cairn/segmentation/ground.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <numbers>
+
+#include "cairn/core/error.hpp"
+
+namespace cairn {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr int kLaplaceIterations = 200;   // harmonic fill of object/empty cells
+constexpr std::size_t kMaxGridCells = 50'000'000;
+
+/// A 2-D grid of float values over the xy extent of the points.
+struct Grid {
+  int nx = 0, ny = 0;
+  float x0 = 0, y0 = 0, cell = 1;
+  std::vector<float> v;
+  float& at(int ix, int iy) { return v[std::size_t(iy) * nx + ix]; }
+  [[nodiscard]] float at(int ix, int iy) const { return v[std::size_t(iy) * nx + ix]; }
+  [[nodiscard]] int ix(float x) const { return std::clamp(int((x - x0) / cell), 0, nx - 1); }
+  [[nodiscard]] int iy(float y) const { return std::clamp(int((y - y0) / cell), 0, ny - 1); }
+  /// Bilinear interpolation between cell centres.
+  [[nodiscard]] float bilinear(float x, float y) const {
+    const float fx = std::clamp((x - x0) / cell - 0.5f, 0.0f, float(nx - 1));
+    const float fy = std::clamp((y - y0) / cell - 0.5f, 0.0f, float(ny - 1));
+    const int i0 = std::min(int(fx), nx - 1), j0 = std::min(int(fy), ny - 1);
+    const int i1 = std::min(i0 + 1, nx - 1), j1 = std::min(j0 + 1, ny - 1);
+    const float tx = fx - float(i0), ty = fy - float(j0);
+    return (1 - ty) * ((1 - tx) * at(i0, j0) + tx * at(i1, j0)) + ty * ((1 - tx) * at(i0, j1) + tx * at(i1, j1));
+  }
+};
+
+Grid make_grid(std::span<const Vec3f> pts, float cell) {
+  const Aabb box = bounds(pts);
+  Grid g;
+  g.cell = cell;
+  g.x0 = box.min.x();
+  g.y0 = box.min.y();
+  g.nx = int((box.max.x() - box.min.x()) / cell) + 1;
+  g.ny = int((box.max.y() - box.min.y()) / cell) + 1;
+  if (std::size_t(g.nx) * std::size_t(g.ny) > kMaxGridCells)
+    throw ConfigError("ground: cell_size " + std::to_string(cell) + " m is too small for the extent");
+  g.v.assign(std::size_t(g.nx) * g.ny, kInf);
+  return g;
+}
+
+/// Fills +inf cells with the value of the nearest finite cell (multi-source BFS, 4-neighbourhood).
+void fill_nearest(Grid& g) {
+  std::deque<std::pair<int, int>> queue;
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x)
+      if (g.at(x, y) < kInf) queue.emplace_back(x, y);
+  constexpr int kDx[4] = {1, -1, 0, 0}, kDy[4] = {0, 0, 1, -1};
+  while (!queue.empty()) {
+    const auto [x, y] = queue.front();
+    queue.pop_front();
+    for (int k = 0; k < 4; ++k) {
+      const int u = x + kDx[k], w = y + kDy[k];
+      if (u < 0 || w < 0 || u >= g.nx || w >= g.ny || g.at(u, w) < kInf) continue;
+      g.at(u, w) = g.at(x, y);
+      queue.emplace_back(u, w);
+    }
+  }
+}
+
+/// Separable min (erode) or max (dilate) filter with a square window of half-width r cells.
+Grid morph(const Grid& in, int r, bool erode) {
+  const auto pick = [erode](float a, float b) { return erode ? std::min(a, b) : std::max(a, b); };
+  Grid tmp = in, out = in;
+  for (int y = 0; y < in.ny; ++y)
+    for (int x = 0; x < in.nx; ++x) {
+      float m = in.at(x, y);
+      for (int k = std::max(0, x - r); k <= std::min(in.nx - 1, x + r); ++k) m = pick(m, in.at(k, y));
+      tmp.at(x, y) = m;
+    }
+  for (int y = 0; y < in.ny; ++y)
+    for (int x = 0; x < in.nx; ++x) {
+      float m = tmp.at(x, y);
+      for (int k = std::max(0, y - r); k <= std::min(in.ny - 1, y + r); ++k) m = pick(m, tmp.at(x, k));
+      out.at(x, y) = m;
+    }
+  return out;
+}
+
+/// Progressive morphological filter: true for cells whose lowest point is terrain.
+std::vector<std::uint8_t> pmf_ground_cells(Grid zmin, const GroundConfig& c) {
+  std::vector<std::uint8_t> ground(zmin.v.size(), 1);
+  const int max_half = std::max(1, int(std::ceil(c.max_window / c.cell_size / 2.0)));
+  int prev_half = 0;
+  for (int half = 1;; half = std::min(2 * half, max_half)) {
+    const Grid opened = morph(morph(zmin, half, true), half, false);
+    const double dh = prev_half == 0 ? c.initial_height
+                                     : std::min(c.max_height, c.initial_height + c.slope * 2.0 *
+                                                                   (half - prev_half) * c.cell_size);
+    for (std::size_t i = 0; i < zmin.v.size(); ++i)
+      if (zmin.v[i] - opened.v[i] > dh) ground[i] = 0;
+    zmin = opened;
+    prev_half = half;
+    if (half == max_half) break;
+  }
+  return ground;
+}
+
+/// Harmonic (Laplace) fill of the cells that are not fixed, starting from nearest values.
+void harmonic_fill(Grid& g, const std::vector<std::uint8_t>& fixed) {
+  for (std::size_t i = 0; i < g.v.size(); ++i)
+    if (!fixed[i]) g.v[i] = kInf;
+  fill_nearest(g);
+  for (int it = 0; it < kLaplaceIterations; ++it)
+    for (int y = 0; y < g.ny; ++y)
+      for (int x = 0; x < g.nx; ++x) {
+        if (fixed[std::size_t(y) * g.nx + x]) continue;
+        float s = 0;
+        int n = 0;
+        if (x > 0) s += g.at(x - 1, y), ++n;
+        if (x + 1 < g.nx) s += g.at(x + 1, y), ++n;
+        if (y > 0) s += g.at(x, y - 1), ++n;
+        if (y + 1 < g.ny) s += g.at(x, y + 1), ++n;
+        g.at(x, y) = s / float(n);
+      }
+}
+
+/// Least-squares z = a + b·dx + c·dy over the points of a cell within `band` above its minimum,
+/// refit once on the points within half the band of the first fit; returns a (height at centre).
+float local_height(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx, float zmin,
+                   float band, float cx, float cy) {
+  float a = zmin + 0.5f * band;
+  Eigen::Vector3f coef(a, 0, 0);
+  for (int pass = 0; pass < 2; ++pass) {
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (auto i : idx) {
+      const Vec3f& p = pts[i];
+      const float dx = p.x() - cx, dy = p.y() - cy;
+      const bool use = pass == 0 ? p.z() <= zmin + band
+                                 : std::abs(p.z() - (coef[0] + coef[1] * dx + coef[2] * dy)) <= 0.5f * band;
+      if (!use) continue;
+      const Eigen::Vector3d r(1.0, dx, dy);
+      ata += r * r.transpose();
+      atb += r * double(p.z());
+      ++n;
+    }
+    constexpr int kMinFitPoints = 6;
+    if (n < kMinFitPoints) return pass == 0 ? zmin : coef[0];
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+    if (ldlt.info() != Eigen::Success || ata.determinant() < 1e-12) return pass == 0 ? zmin : coef[0];
+    coef = ldlt.solve(atb).cast<float>();
+  }
+  return coef[0];
+}
+
+GroundResult ground_plane_method(std::span<const Vec3f> pts, const GroundConfig& c, std::mt19937_64& rng) {
+  RansacPlaneConfig rc;
+  rc.distance = c.d_plane;
+  rc.max_iterations = c.ransac_iterations;
+  rc.axis = Vec3f::UnitZ();
+  rc.max_tilt = c.max_tilt_deg * std::numbers::pi / 180.0;
+  const PlaneFit fit = fit_plane_ransac(pts, {}, rc, rng);
+  if (!fit.found) throw InputError("ground: no plane found (too few or degenerate points)");
+  GroundResult r;
+  r.plane = fit.plane;
+  if (r.plane.normal.z() < 0) r.plane = {-r.plane.normal, -r.plane.d};
+  r.height.resize(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) r.height[i] = r.plane.signed_distance(pts[i]);
+  return r;
+}
+
+GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& c) {
+  if (!(c.cell_size > 0) || !(c.max_window > 0)) throw ConfigError("ground: cell_size and max_window must be > 0");
+  Grid zmin = make_grid(pts, float(c.cell_size));
+  std::vector<std::vector<std::uint32_t>> members(zmin.v.size());
+  for (std::uint32_t i = 0; i < pts.size(); ++i) {
+    const std::size_t k = std::size_t(zmin.iy(pts[i].y())) * zmin.nx + zmin.ix(pts[i].x());
+    members[k].push_back(i);
+    zmin.v[k] = std::min(zmin.v[k], pts[i].z());
+  }
+  std::vector<std::uint8_t> occupied(zmin.v.size());
+  for (std::size_t k = 0; k < zmin.v.size(); ++k) occupied[k] = !members[k].empty();
+  Grid filled = zmin;
+  fill_nearest(filled);
+  std::vector<std::uint8_t> ground = pmf_ground_cells(filled, c);
+  for (std::size_t k = 0; k < ground.size(); ++k) ground[k] &= occupied[k];
+
+  Grid surface = zmin;
+  tbb::parallel_for(std::size_t{0}, surface.v.size(), [&](std::size_t k) {
+    if (!ground[k]) return;
+    const int x = int(k % std::size_t(surface.nx)), y = int(k / std::size_t(surface.nx));
+    const float cx = surface.x0 + (float(x) + 0.5f) * surface.cell;
+    const float cy = surface.y0 + (float(y) + 0.5f) * surface.cell;
+    surface.v[k] = local_height(pts, members[k], zmin.v[k], float(c.initial_height), cx, cy);
+  });
+  harmonic_fill(surface, ground);
+
+  GroundResult r;
+  r.height.resize(pts.size());
+  tbb::parallel_for(std::size_t{0}, pts.size(), [&](std::size_t i) {
+    r.height[i] = pts[i].z() - surface.bilinear(pts[i].x(), pts[i].y());
+  });
+  return r;
+}
+
+}  // namespace
+
+GroundResult estimate_ground(std::span<const Vec3f> points, const GroundConfig& config, std::mt19937_64& rng) {
+  if (points.size() < 3) throw InputError("ground: need at least 3 points, got " + std::to_string(points.size()));
+  GroundResult r;
+  if (config.method == "plane")
+    r = ground_plane_method(points, config, rng);
+  else if (config.method == "grid")
+    r = ground_grid_method(points, config);
+  else
+    throw ConfigError("ground: unknown method '" + config.method + "' (grid or plane)");
+
+  std::vector<std::uint32_t> ground_idx;
+  for (std::uint32_t i = 0; i < points.size(); ++i)
+    if (r.height[i] <= config.d_plane) ground_idx.push_back(i);
+  r.num_ground = ground_idx.size();
+  if (config.method == "grid") {
+    if (auto p = fit_plane(points, ground_idx)) {
+      r.plane = *p;
+      if (r.plane.normal.z() < 0) r.plane = {-r.plane.normal, -r.plane.d};
+    }
+  }
+  return r;
+}
+
+}  // namespace cairn

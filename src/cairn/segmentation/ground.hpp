@@ -1,0 +1,61 @@
+#pragma once
+// Ground removal (Sec. 4.3). Two methods:
+//  - "plane": the paper's single RANSAC plane with distance margin d_plane;
+//  - "grid":  a local ground surface for sloped, undulating terrain — a progressive morphological
+//    filter (Zhang et al. 2003) on a grid of lowest points separates terrain cells from object
+//    cells, terrain cells get a local least-squares height, object and empty cells are filled by
+//    harmonic interpolation, and every point gets its height above that surface.
+#include <cstdint>
+#include <random>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cairn/core/plane.hpp"
+
+namespace cairn {
+
+struct GroundConfig {
+  std::string method = "grid";  // "grid" (local surface) or "plane" (one RANSAC plane)
+  double d_plane = 0.10;        // Table 3: points within this height of the ground are ground [m]
+  double max_tilt_deg = 30.0;   // plane method: ground normal within this angle of +z
+  int ransac_iterations = 1000; // plane method: RANSAC iteration cap
+  double cell_size = 0.5;       // grid method: cell edge [m]
+  double max_window = 4.0;      // grid method: largest object footprint removed [m]
+  double slope = 0.3;           // grid method: terrain slope tolerated by the filter (rise/run)
+  double initial_height = 0.2;  // grid method: height threshold of the first window [m]
+  double max_height = 3.0;      // grid method: cap of the growing height threshold [m]
+  double attach_height = 0.03;  // points higher than this (but within d_plane) next to an
+                                // object join it: keeps the bottoms of stones [m]
+  double attach_radius = 0.15;  // ... if within this horizontal distance of the object [m]
+
+  template <class V>
+  void visit(V& v) {
+    v("method", method, "ground model: grid (local surface, uneven terrain) or plane (paper)");
+    v("d_plane", d_plane, "plane fitting distance threshold / height above local ground [m] (Table 3)");
+    v("max_tilt_deg", max_tilt_deg, "plane method: max. angle of the ground normal from +z [deg]");
+    v("ransac_iterations", ransac_iterations, "plane method: RANSAC iteration cap");
+    v("cell_size", cell_size, "grid method: cell edge [m]");
+    v("max_window", max_window, "grid method: largest object footprint to remove [m]");
+    v("slope", slope, "grid method: terrain slope tolerated by the morphological filter");
+    v("initial_height", initial_height, "grid method: height threshold of the first window [m]");
+    v("max_height", max_height, "grid method: cap of the height threshold [m]");
+    v("attach_height", attach_height,
+      "points above this height next to an object are attached to it (stone bottoms) [m]");
+    v("attach_radius", attach_radius, "max. horizontal distance of attached points from the object [m]");
+  }
+};
+
+struct GroundResult {
+  std::vector<float> height;  // per point: height above the local ground [m]
+  Plane plane;                // dominant ground plane (least squares over the ground points)
+  std::size_t num_ground = 0; // points with height <= d_plane
+  [[nodiscard]] bool is_ground(std::size_t i, double d_plane) const { return height[i] <= d_plane; }
+};
+
+/// Heights above the ground for every point. Throws ConfigError on invalid parameters and
+/// InputError when no ground can be found (fewer than 3 points).
+[[nodiscard]] GroundResult estimate_ground(std::span<const Vec3f> points, const GroundConfig& config,
+                                           std::mt19937_64& rng);
+
+}  // namespace cairn

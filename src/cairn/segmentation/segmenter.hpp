@@ -1,0 +1,68 @@
+#pragma once
+// Map segmentation (Sec. 4.3): ground removal → Euclidean clustering → planarity check →
+// segments with centroids.
+#include <cstdint>
+#include <vector>
+
+#include "cairn/core/log.hpp"
+#include "cairn/segmentation/clustering.hpp"
+#include "cairn/segmentation/ground.hpp"
+
+namespace cairn {
+
+struct PlanarityConfig {
+  bool enabled = true;
+  double distance = 0.05;         // RANSAC inlier distance for the planarity test [m]
+  double max_inlier_ratio = 0.85; // segments with a larger share of plane inliers are planar
+  int iterations = 200;
+
+  template <class V>
+  void visit(V& v) {
+    v("enabled", enabled, "drop nearly planar segments (walls, slabs, leftover terrain)");
+    v("distance", distance, "RANSAC inlier distance of the planarity check [m]");
+    v("max_inlier_ratio", max_inlier_ratio, "a segment is planar above this share of plane inliers");
+    v("iterations", iterations, "RANSAC iterations of the planarity check");
+  }
+};
+
+struct SegmentationConfig {
+  GroundConfig ground;
+  ClusterConfig clustering;
+  PlanarityConfig planarity;
+  std::uint64_t seed = 42;  // RANSAC generator seed: results are reproducible
+
+  template <class V>
+  void visit(V& v) {
+    v("ground", ground, "ground removal");
+    v("clustering", clustering, "Euclidean clustering of the non-ground points");
+    v("planarity", planarity, "planarity check of the clusters");
+    v("seed", seed, "random seed of the RANSAC steps");
+  }
+};
+
+/// Labels of the contract: segment id >= 0, ground, or no object.
+inline constexpr std::int32_t kLabelGround = -1;
+inline constexpr std::int32_t kLabelNone = -2;
+
+struct Segment {
+  std::int32_t id = 0;
+  std::vector<std::uint32_t> indices;  // into the input cloud, ascending
+  Vec3f centroid = Vec3f::Zero();
+  Aabb box;
+  bool planar = false;
+  double plane_inlier_ratio = 0.0;
+};
+
+struct SegmentationResult {
+  std::vector<std::int32_t> labels;  // per input point
+  std::vector<Segment> segments;     // objects first (ids 0..k-1, largest first), then planar ones
+  Plane ground_plane;
+  std::size_t num_ground = 0;
+  Timings timings;
+  [[nodiscard]] std::size_t num_objects() const;
+};
+
+/// Segments a cloud (positions must be finite; throws InputError otherwise or when empty).
+[[nodiscard]] SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& config);
+
+}  // namespace cairn

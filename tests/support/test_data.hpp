@@ -1,0 +1,35 @@
+#pragma once
+// Locating the shared real data sets (../shared/data/real) from tests.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+
+namespace cairn::test {
+
+/// shared/ folder: $CAIRN_SHARED_DIR if set, else the path configured at build time.
+inline std::filesystem::path shared_dir() {
+  if (const char* env = std::getenv("CAIRN_SHARED_DIR")) return env;
+  return CAIRN_SHARED_DIR;
+}
+
+inline std::filesystem::path real_data(const std::filesystem::path& relative) {
+  return shared_dir() / "data" / "real" / relative;
+}
+
+/// A fresh, empty temporary directory for one test.
+inline std::filesystem::path temp_dir(const std::string& name) {
+  auto dir = std::filesystem::temp_directory_path() / ("cairn_test_" + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+}  // namespace cairn::test
+
+/// Skips the test (with a message) when the shared real data set is not present.
+#define CAIRN_REQUIRE_REAL_DATA(relative)                                                  \
+  do {                                                                                     \
+    if (!std::filesystem::exists(::cairn::test::real_data(relative)))                      \
+      GTEST_SKIP() << "real data not found: " << ::cairn::test::real_data(relative);       \
+  } while (0)
