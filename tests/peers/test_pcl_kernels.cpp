@@ -105,7 +105,7 @@ TEST(PeerPcl, RansacPlaneSameInliersNoiseFree) {
     const float x = u(rng), y = u(rng);
     plane_idx.push_back(std::uint32_t(pts.size()));
     pts.emplace_back(x, y, 0.05f * x - 0.02f * y + 1.0f);
-    if (i % 2 == 0) pts.emplace_back(u(rng), u(rng), 3.0f + u(rng));  // clutter above
+    if (i % 2 == 0) pts.emplace_back(u(rng), u(rng), 3.0f + std::abs(u(rng)));  // clutter, well above
   }
   std::mt19937_64 gen(42);
   const PlaneFit ours = fit_plane_ransac(pts, {}, {.distance = 0.02}, gen);

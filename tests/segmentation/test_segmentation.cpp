@@ -34,21 +34,57 @@ TEST_P(ProceduralSiteSegmentation, EveryStoneIsOneCompleteSegment) {
   EXPECT_EQ(e.found(), std::size_t(n));
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, ProceduralSiteSegmentation, ::testing::Values(1, 2, 3, 4, 5, 6));
+INSTANTIATE_TEST_SUITE_P(Seeds, ProceduralSiteSegmentation, ::testing::Values(1, 2, 3, 4, 5, 6, 7, 8));
 
 TEST(Segmentation, SinglePlaneGroundFailsOnUndulatingTerrainWhereGridSucceeds) {
-  // The paper's single RANSAC plane cannot follow 25 cm undulations: terrain leaks into segments.
-  sim::SiteConfig cfg;
-  cfg.terrain.bump_amplitude = 0.4;
-  const sim::Site site = sim::generate_site(cfg, 11);
-  const sim::SampledSite sampled = sim::sample_site(site, {}, 11);
-  SegmentationConfig plane_cfg;
-  plane_cfg.ground.method = "plane";
-  const SegmentationScore plane = score_segmentation(segment(sampled.cloud, plane_cfg).labels, sampled.truth, 7);
-  const SegmentationScore grid = score_segmentation(segment(sampled.cloud, {}).labels, sampled.truth, 7);
-  EXPECT_EQ(grid.terrain_segments, 0u);
-  EXPECT_EQ(grid.found(), 7u);
-  EXPECT_TRUE(plane.found() < 7u || plane.terrain_segments > 0u);  // the single plane is worse
+  // The paper's single RANSAC plane cannot follow a sloped site with 25 cm undulations: terrain
+  // leaks into segments and stones merge with it. The local ground model handles it.
+  for (const std::uint64_t seed : {11u, 13u}) {
+    const sim::Site site = sim::generate_site({}, seed);
+    const sim::SampledSite sampled = sim::sample_site(site, {}, seed);
+    SegmentationConfig plane_cfg;
+    plane_cfg.ground.method = "plane";
+    const SegmentationScore plane = score_segmentation(segment(sampled.cloud, plane_cfg).labels, sampled.truth, 7);
+    const SegmentationScore grid = score_segmentation(segment(sampled.cloud, {}).labels, sampled.truth, 7);
+    EXPECT_EQ(grid.terrain_segments, 0u) << seed;
+    EXPECT_EQ(grid.found(), 7u) << seed;
+    EXPECT_GT(plane.terrain_segments, 0u) << seed;
+    EXPECT_LT(plane.found(), 7u) << seed;
+  }
+}
+
+TEST(Segmentation, SteeperUndulationsStillMostlyCorrect) {
+  // ±35 cm undulations (3–8 m wavelengths): ridges as steep as stone flanks. Measured over 16
+  // seeds: 14 fully correct; here 8 seeds must give at least 55 of 56 stones and at most one
+  // terrain segment in all.
+  std::size_t found = 0, terrain = 0;
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    sim::SiteConfig cfg;
+    cfg.terrain.bump_amplitude = 0.35;
+    const sim::Site site = sim::generate_site(cfg, seed);
+    const sim::SampledSite sampled = sim::sample_site(site, {}, seed);
+    const SegmentationScore s = score_segmentation(segment(sampled.cloud, {}).labels, sampled.truth, 7);
+    found += s.found();
+    terrain += s.terrain_segments;
+  }
+  EXPECT_GE(found, 55u);
+  EXPECT_LE(terrain, 1u);
+}
+
+TEST(Segmentation, TerrainRidgeWithoutSteepSidesIsGround) {
+  // A smooth ridge the ground model would cut off is not an object: no stacked points.
+  PointCloud c;
+  for (int i = 0; i < 200; ++i)
+    for (int j = 0; j < 200; ++j) {
+      const float x = float(i) * 0.03f, y = float(j) * 0.03f;
+      c.points.emplace_back(x, y, 0.8f * std::exp(-(x - 3) * (x - 3) / 0.3f));  // 0.8 m high, ~1.5 m wide
+    }
+  SegmentationConfig cfg;
+  cfg.verticality.enabled = false;
+  EXPECT_GE(segment(c, cfg).num_objects(), 1u);  // without the check, the ridge is an "object"
+  const SegmentationResult r = segment(c, {});
+  EXPECT_EQ(r.num_objects(), 0u);
+  EXPECT_EQ(r.num_ground, c.size());
 }
 
 TEST(Segmentation, DeterministicForSeed) {

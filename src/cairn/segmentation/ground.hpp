@@ -25,7 +25,7 @@ struct GroundConfig {
   double slope = 0.3;           // grid method: terrain slope tolerated by the filter (rise/run)
   double initial_height = 0.2;  // grid method: height threshold of the first window [m]
   double max_height = 3.0;      // grid method: cap of the growing height threshold [m]
-  double attach_height = 0.03;  // points higher than this (but within d_plane) next to an
+  double attach_height = 0.02;  // points higher than this (but within d_plane) next to an
                                 // object join it: keeps the bottoms of stones [m]
   double attach_radius = 0.15;  // ... if within this horizontal distance of the object [m]
 

@@ -40,7 +40,8 @@ nlohmann::json segments_json(const PointCloud& cloud, const SegmentationResult& 
                              {"bbox_min", vec(cloud.origin + s.box.min.cast<double>())},
                              {"bbox_max", vec(cloud.origin + s.box.max.cast<double>())},
                              {"planar", s.planar},
-                             {"plane_inlier_ratio", s.plane_inlier_ratio}});
+                             {"plane_inlier_ratio", s.plane_inlier_ratio},
+                             {"stacked_fraction", s.stacked_fraction}});
   }
   nlohmann::json t = nlohmann::json::object();
   for (const auto& [name, ms] : r.timings.stages) t[name] = ms;

@@ -3,6 +3,8 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
+#include <unordered_map>
 #include <tbb/parallel_for.h>
 
 #include <deque>
@@ -62,8 +64,31 @@ void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& heigh
   for (auto& cl : clusters) std::sort(cl.begin(), cl.end());
 }
 
-Segment make_segment(std::span<const Vec3f> pts, std::vector<std::uint32_t> idx, const PlanarityConfig& pc,
+/// Share of the points lying in xy columns whose z spread exceeds the column height.
+double stacked_fraction(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx, const VerticalityConfig& v) {
+  std::unordered_map<std::uint64_t, std::pair<float, float>> columns;  // key → (zmin, zmax)
+  const float inv = 1.0f / float(v.column_size);
+  const auto key = [&](const Vec3f& p) {
+    return (std::uint64_t(std::uint32_t(std::int32_t(std::floor(p.x() * inv)))) << 32) |
+           std::uint32_t(std::int32_t(std::floor(p.y() * inv)));
+  };
+  columns.reserve(idx.size());
+  for (auto i : idx) {
+    auto [it, fresh] = columns.try_emplace(key(pts[i]), pts[i].z(), pts[i].z());
+    it->second.first = std::min(it->second.first, pts[i].z());
+    it->second.second = std::max(it->second.second, pts[i].z());
+  }
+  std::size_t stacked = 0;
+  for (auto i : idx) {
+    const auto& [lo, hi] = columns.at(key(pts[i]));
+    stacked += hi - lo > float(v.column_height);
+  }
+  return idx.empty() ? 0.0 : double(stacked) / double(idx.size());
+}
+
+Segment make_segment(std::span<const Vec3f> pts, std::vector<std::uint32_t> idx, const SegmentationConfig& c,
                      std::mt19937_64& rng) {
+  const PlanarityConfig& pc = c.planarity;
   Segment s;
   s.indices = std::move(idx);
   s.centroid = centroid(pts, s.indices);
@@ -80,6 +105,7 @@ Segment make_segment(std::span<const Vec3f> pts, std::vector<std::uint32_t> idx,
     s.plane_inlier_ratio = fit.found ? double(fit.inliers.size()) / double(s.indices.size()) : 0.0;
     s.planar = s.plane_inlier_ratio > pc.max_inlier_ratio;
   }
+  if (c.verticality.enabled) s.stacked_fraction = stacked_fraction(pts, s.indices, c.verticality);
   return s;
 }
 
@@ -105,16 +131,21 @@ SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& co
   attach_low_band(pts, ground.height, config, clusters);
   res.timings.add("clustering", sw.lap_ms());
 
-  std::vector<Segment> objects, planar;
+  std::vector<Segment> objects, planar, terrain;
   for (auto& cl : clusters) {
-    Segment s = make_segment(pts, std::move(cl), config.planarity, rng);
-    (s.planar ? planar : objects).push_back(std::move(s));
+    Segment s = make_segment(pts, std::move(cl), config, rng);
+    if (s.stacked_fraction < config.verticality.min_stacked_fraction)
+      terrain.push_back(std::move(s));
+    else
+      (s.planar ? planar : objects).push_back(std::move(s));
   }
-  res.timings.add("planarity", sw.lap_ms());
+  res.timings.add("shape_checks", sw.lap_ms());
 
   res.labels.assign(pts.size(), kLabelNone);
   for (std::uint32_t i = 0; i < pts.size(); ++i)
     if (ground.height[i] <= config.ground.d_plane) res.labels[i] = kLabelGround;
+  for (const auto& s : terrain)
+    for (auto i : s.indices) res.labels[i] = kLabelGround;
   std::int32_t next_id = 0;
   for (auto& s : objects) {
     s.id = next_id++;
@@ -124,6 +155,7 @@ SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& co
     s.id = next_id++;  // listed for inspection; their points stay kLabelNone (no object)
     for (auto i : s.indices) res.labels[i] = kLabelNone;
   }
+  res.num_ground = std::size_t(std::count(res.labels.begin(), res.labels.end(), kLabelGround));
   res.segments = std::move(objects);
   res.segments.insert(res.segments.end(), std::make_move_iterator(planar.begin()),
                       std::make_move_iterator(planar.end()));

@@ -25,10 +25,30 @@ struct PlanarityConfig {
   }
 };
 
+/// Terrain check (beyond the paper): terrain is a height field — one surface per xy location —
+/// while a stone has steep sides where points stack vertically. A cluster with too small a share
+/// of its points in "stacked" xy columns (z spread > column_height) is leftover terrain (a
+/// ridge the ground model cut off) and is labelled ground.
+struct VerticalityConfig {
+  bool enabled = true;
+  double column_size = 0.05;       // xy column edge [m]
+  double column_height = 0.12;     // a column is stacked when its z spread exceeds this [m]
+  double min_stacked_fraction = 0.1;
+
+  template <class V>
+  void visit(V& v) {
+    v("enabled", enabled, "relabel clusters without steep sides (terrain ridges) as ground");
+    v("column_size", column_size, "xy column edge of the verticality test [m]");
+    v("column_height", column_height, "z spread that makes a column stacked [m]");
+    v("min_stacked_fraction", min_stacked_fraction, "objects have at least this share of points in stacked columns");
+  }
+};
+
 struct SegmentationConfig {
   GroundConfig ground;
   ClusterConfig clustering;
   PlanarityConfig planarity;
+  VerticalityConfig verticality;
   std::uint64_t seed = 42;  // RANSAC generator seed: results are reproducible
 
   template <class V>
@@ -36,6 +56,7 @@ struct SegmentationConfig {
     v("ground", ground, "ground removal");
     v("clustering", clustering, "Euclidean clustering of the non-ground points");
     v("planarity", planarity, "planarity check of the clusters");
+    v("verticality", verticality, "terrain check of the clusters (steep sides)");
     v("seed", seed, "random seed of the RANSAC steps");
   }
 };
@@ -51,6 +72,7 @@ struct Segment {
   Aabb box;
   bool planar = false;
   double plane_inlier_ratio = 0.0;
+  double stacked_fraction = 1.0;  // share of points in vertically stacked xy columns
 };
 
 struct SegmentationResult {
