@@ -41,12 +41,7 @@ pcl::PointCloud<pcl::PointXYZ>::Ptr pcl_map() {
   return cloud;
 }
 
-void set_counters(benchmark::State& state) {
-  state.counters["points"] = double(site_map().size());
-  state.counters["ms_per_100k"] = benchmark::Counter(
-      double(state.iterations()) * 1e3 * 1e5 / double(site_map().size()),
-      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-}
+void set_counters(benchmark::State& state) { state.counters["points"] = double(site_map().size()); }
 
 void BM_Cairn_Segment(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(segment(site_map(), {}));

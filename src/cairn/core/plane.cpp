@@ -1,8 +1,5 @@
 #include "cairn/core/plane.hpp"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
-
 #include <cmath>
 #include <numeric>
 
@@ -22,16 +19,11 @@ std::optional<Plane> plane_from_three(const Vec3f& a, const Vec3f& b, const Vec3
   return p;
 }
 
-std::size_t count_inliers(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx,
-                          const Plane& pl, float thr) {
-  return tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, idx.size(), 8192), std::size_t{0},
-      [&](const auto& r, std::size_t acc) {
-        for (auto i = r.begin(); i != r.end(); ++i)
-          acc += std::abs(pl.signed_distance(pts[idx[i]])) <= thr;
-        return acc;
-      },
-      std::plus<>());
+std::size_t count_inliers(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx, const Plane& pl,
+                          float thr) {
+  std::size_t n = 0;
+  for (auto i : idx) n += std::abs(pl.signed_distance(pts[i])) <= thr;
+  return n;
 }
 
 std::vector<std::uint32_t> select_inliers(std::span<const Vec3f> pts,
@@ -69,6 +61,16 @@ PlaneFit fit_plane_ransac(std::span<const Vec3f> points, std::span<const std::ui
   if (n < 3) return fit;
   const float thr = float(config.distance);
   const double cos_tilt = std::cos(config.max_tilt);
+  // Hypotheses are scored on a fixed random subset of large inputs (the inlier share is what
+  // matters); the final inlier set is always selected over all points.
+  std::vector<std::uint32_t> subset;
+  std::span<const std::uint32_t> scored = indices;
+  if (n > config.max_scored_points && config.max_scored_points >= 3) {
+    std::uniform_int_distribution<std::size_t> any(0, n - 1);
+    subset.resize(config.max_scored_points);
+    for (auto& v : subset) v = indices[any(rng)];
+    scored = subset;
+  }
   std::size_t best = 0;
   double needed = double(config.max_iterations);
   std::uniform_int_distribution<std::size_t> pick(0, n - 1);
@@ -78,13 +80,13 @@ PlaneFit fit_plane_ransac(std::span<const Vec3f> points, std::span<const std::ui
                                     points[indices[pick(rng)]]);
     if (!h) continue;
     if (config.axis && std::abs(h->normal.dot(*config.axis)) < cos_tilt) continue;
-    const std::size_t count = count_inliers(points, indices, *h, thr);
+    const std::size_t count = count_inliers(points, scored, *h, thr);
     if (count <= best) continue;
     best = count;
     fit.plane = *h;
     fit.found = true;
     // Adaptive termination: k = log(1 - p) / log(1 - w^3)
-    const double w = double(best) / double(n);
+    const double w = double(best) / double(scored.size());
     const double denom = std::log(std::max(1e-12, 1.0 - w * w * w));
     needed = denom < 0.0 ? std::log(1.0 - config.probability) / denom : needed;
   }

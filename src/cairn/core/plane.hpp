@@ -27,6 +27,9 @@ struct RansacPlaneConfig {
   std::optional<Vec3f> axis;
   double max_tilt = 0.0;       // [rad]
   bool refine = true;          // least-squares refit on the inliers of the best hypothesis
+  /// Hypotheses of larger inputs are scored on a fixed random subset of this many points (the
+  /// final inlier set always covers all points).
+  std::size_t max_scored_points = 8192;
 };
 
 struct PlaneFit {

@@ -1,5 +1,8 @@
 #include "cairn/core/point_cloud.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <cmath>
 #include <limits>
 
@@ -104,12 +107,21 @@ void append(PointCloud& a, const PointCloud& b) {
 }
 
 Aabb bounds(std::span<const Vec3f> points) {
-  Aabb box;
-  for (const auto& p : points) {
-    box.min = box.min.cwiseMin(p);
-    box.max = box.max.cwiseMax(p);
-  }
-  return box;
+  constexpr std::size_t kGrain = 16384;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, points.size(), kGrain), Aabb{},
+      [&](const tbb::blocked_range<std::size_t>& r, Aabb box) {
+        for (auto i = r.begin(); i != r.end(); ++i) {
+          box.min = box.min.cwiseMin(points[i]);
+          box.max = box.max.cwiseMax(points[i]);
+        }
+        return box;
+      },
+      [](Aabb a, const Aabb& b) {
+        a.min = a.min.cwiseMin(b.min);
+        a.max = a.max.cwiseMax(b.max);
+        return a;
+      });
 }
 
 Vec3f centroid(std::span<const Vec3f> points) {

@@ -1,12 +1,15 @@
 #include "cairn/segmentation/clustering.hpp"
 
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
+
+#include <atomic>
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <unordered_map>
 
+#include "cairn/core/cell_map.hpp"
 #include "cairn/core/error.hpp"
 
 namespace cairn {
@@ -33,18 +36,50 @@ void DisjointSets::unite(std::uint32_t a, std::uint32_t b) {
 
 namespace {
 
-constexpr int kCellBits = 21;
-constexpr std::int64_t kCellBias = std::int64_t{1} << (kCellBits - 1);
+/// Lock-free union-find (compare-and-swap linking of the larger root under the smaller): safe
+/// for concurrent unite calls, and the final root of a component is always its smallest index,
+/// whatever the order of the unions — so results do not depend on thread scheduling.
+class ConcurrentDisjointSets {
+ public:
+  explicit ConcurrentDisjointSets(std::size_t n) : parent_(n) {
+    for (std::size_t i = 0; i < n; ++i) parent_[i].store(std::uint32_t(i), std::memory_order_relaxed);
+  }
+  std::uint32_t find(std::uint32_t a) {
+    while (true) {
+      std::uint32_t p = parent_[a].load(std::memory_order_relaxed);
+      if (p == a) return a;
+      const std::uint32_t g = parent_[p].load(std::memory_order_relaxed);
+      if (g != p) parent_[a].compare_exchange_weak(p, g, std::memory_order_relaxed);  // path halving
+      a = g;
+    }
+  }
+  void unite(std::uint32_t a, std::uint32_t b) {
+    while (true) {
+      a = find(a);
+      b = find(b);
+      if (a == b) return;
+      if (a < b) std::swap(a, b);
+      std::uint32_t expected = a;
+      if (parent_[a].compare_exchange_strong(expected, b, std::memory_order_acq_rel)) return;
+    }
+  }
 
-std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
-  const auto m = (std::uint64_t{1} << kCellBits) - 1;
-  return (std::uint64_t(z + kCellBias) & m) << (2 * kCellBits) |
-         (std::uint64_t(y + kCellBias) & m) << kCellBits | (std::uint64_t(x + kCellBias) & m);
-}
+ private:
+  std::vector<std::atomic<std::uint32_t>> parent_;
+};
 
 struct Cell {
   std::uint32_t begin, end;  // range in the sorted member array
+  Eigen::Array3i coord;
 };
+
+/// Whether every point of the cell already belongs to the component rooted at `root`.
+bool all_in(ConcurrentDisjointSets& sets, const std::vector<std::pair<std::uint64_t, std::uint32_t>>& keyed,
+            const Cell& cell, std::uint32_t root) {
+  for (auto k = cell.begin; k < cell.end; ++k)
+    if (sets.find(keyed[k].second) != root) return false;
+  return true;
+}
 
 }  // namespace
 
@@ -64,35 +99,42 @@ std::vector<std::vector<std::uint32_t>> euclidean_clusters(std::span<const Vec3f
   const float inv = 1.0f / tol;
 
   // Hash grid with cells of edge `tolerance`: neighbours of a point lie in the 27 cells around it.
+  const auto cell_of = [inv](const Vec3f& p) {
+    return Eigen::Array3i(int(std::floor(p.x() * inv)), int(std::floor(p.y() * inv)), int(std::floor(p.z() * inv)));
+  };
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);  // (cell key, local index)
-  std::vector<Eigen::Array3i> cell_of(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3f& p = points[indices[i]];
-    cell_of[i] = {int(std::floor(p.x() * inv)), int(std::floor(p.y() * inv)), int(std::floor(p.z() * inv))};
-    keyed[i] = {pack(cell_of[i][0], cell_of[i][1], cell_of[i][2]), std::uint32_t(i)};
+    const Eigen::Array3i c = cell_of(points[indices[i]]);
+    keyed[i] = {CellMap::key(c[0], c[1], c[2]), std::uint32_t(i)};
   }
   tbb::parallel_sort(keyed.begin(), keyed.end());
-  std::unordered_map<std::uint64_t, Cell> cells;
-  cells.reserve(n / 4 + 1);
+  std::vector<Cell> cells;
   for (std::uint32_t i = 0; i < n;) {
     std::uint32_t j = i;
     while (j < n && keyed[j].first == keyed[i].first) ++j;
-    cells.emplace(keyed[i].first, Cell{i, j});
+    cells.push_back({i, j, cell_of(points[indices[keyed[i].second]])});
     i = j;
   }
+  CellMap lookup(cells.size());
+  for (std::uint32_t c = 0; c < cells.size(); ++c) lookup.insert(keyed[cells[c].begin].first, c);
 
   // Union every pair closer than the tolerance; each cell pair visited once (13 forward offsets).
-  DisjointSets sets(n);
-  for (const auto& [key, cell] : cells) {
-    const Eigen::Array3i c = cell_of[keyed[cell.begin].second];
+  ConcurrentDisjointSets sets(n);
+  tbb::parallel_for(std::size_t{0}, cells.size(), [&](std::size_t ci) {
+    const Cell& cell = cells[ci];
+    const Eigen::Array3i& c = cell.coord;
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           const int order = dz * 9 + dy * 3 + dx;
           if (order < 0) continue;  // the mirrored pair is handled from the other cell
-          const auto it = cells.find(pack(c[0] + dx, c[1] + dy, c[2] + dz));
-          if (it == cells.end()) continue;
-          const Cell other = it->second;
+          const std::uint32_t o = order == 0 ? std::uint32_t(ci)
+                                             : lookup.find(CellMap::key(c[0] + dx, c[1] + dy, c[2] + dz));
+          if (o == CellMap::kAbsent) continue;
+          const Cell& other = cells[o];
+          if (order != 0 && all_in(sets, keyed, other, sets.find(keyed[cell.begin].second)) &&
+              all_in(sets, keyed, cell, sets.find(keyed[cell.begin].second)))
+            continue;  // both cells already in one component: every cross pair is connected
           for (auto a = cell.begin; a < cell.end; ++a) {
             const std::uint32_t ia = keyed[a].second;
             const Vec3f& pa = points[indices[ia]];
@@ -102,18 +144,25 @@ std::vector<std::vector<std::uint32_t>> euclidean_clusters(std::span<const Vec3f
             }
           }
         }
-  }
+  });
 
-  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> groups;
-  for (std::uint32_t i = 0; i < n; ++i) groups[sets.find(i)].push_back(indices[i]);
-  std::vector<std::vector<std::uint32_t>> clusters;
+  // Components by root (roots are the smallest member index, so this is deterministic).
+  std::vector<std::uint32_t> root_size(n, 0);
+  for (std::uint32_t i = 0; i < n; ++i) ++root_size[sets.find(i)];
   const std::size_t min_pts = std::size_t(std::max(config.min_points, 1));
   const std::size_t max_pts = config.max_points > 0 ? std::size_t(config.max_points) : SIZE_MAX;
-  for (auto& [root, members] : groups) {
-    if (members.size() < min_pts || members.size() > max_pts) continue;
-    std::sort(members.begin(), members.end());
-    clusters.push_back(std::move(members));
+  std::vector<std::uint32_t> slot(n, CellMap::kAbsent);
+  std::vector<std::vector<std::uint32_t>> clusters;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t r = sets.find(i);
+    if (root_size[r] < min_pts || root_size[r] > max_pts) continue;
+    if (slot[r] == CellMap::kAbsent) {
+      slot[r] = std::uint32_t(clusters.size());
+      clusters.emplace_back().reserve(root_size[r]);
+    }
+    clusters[slot[r]].push_back(indices[i]);
   }
+  for (auto& cl : clusters) std::sort(cl.begin(), cl.end());
   std::sort(clusters.begin(), clusters.end(), [](const auto& a, const auto& b) {
     return a.size() != b.size() ? a.size() > b.size() : a.front() < b.front();
   });

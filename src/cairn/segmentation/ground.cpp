@@ -179,14 +179,24 @@ GroundResult ground_plane_method(std::span<const Vec3f> pts, const GroundConfig&
 GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& c) {
   if (!(c.cell_size > 0) || !(c.max_window > 0)) throw ConfigError("ground: cell_size and max_window must be > 0");
   Grid zmin = make_grid(pts, float(c.cell_size));
-  std::vector<std::vector<std::uint32_t>> members(zmin.v.size());
+  // Points sorted by cell (counting sort): cell k holds order[begin[k] .. begin[k + 1]).
+  std::vector<std::uint32_t> cell_of(pts.size()), begin(zmin.v.size() + 1, 0), order(pts.size());
   for (std::uint32_t i = 0; i < pts.size(); ++i) {
     const std::size_t k = std::size_t(zmin.iy(pts[i].y())) * zmin.nx + zmin.ix(pts[i].x());
-    members[k].push_back(i);
+    cell_of[i] = std::uint32_t(k);
+    ++begin[k + 1];
     zmin.v[k] = std::min(zmin.v[k], pts[i].z());
   }
+  for (std::size_t k = 0; k < zmin.v.size(); ++k) begin[k + 1] += begin[k];
+  {
+    std::vector<std::uint32_t> fill(begin.begin(), begin.end() - 1);
+    for (std::uint32_t i = 0; i < pts.size(); ++i) order[fill[cell_of[i]]++] = i;
+  }
+  const auto members = [&](std::size_t k) {
+    return std::span<const std::uint32_t>(order.data() + begin[k], begin[k + 1] - begin[k]);
+  };
   std::vector<std::uint8_t> occupied(zmin.v.size());
-  for (std::size_t k = 0; k < zmin.v.size(); ++k) occupied[k] = !members[k].empty();
+  for (std::size_t k = 0; k < zmin.v.size(); ++k) occupied[k] = begin[k + 1] > begin[k];
   Grid filled = zmin;
   fill_nearest(filled);
   std::vector<std::uint8_t> ground = pmf_ground_cells(filled, c);
@@ -198,7 +208,7 @@ GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& 
     const int x = int(k % std::size_t(surface.nx)), y = int(k / std::size_t(surface.nx));
     const float cx = surface.x0 + (float(x) + 0.5f) * surface.cell;
     const float cy = surface.y0 + (float(y) + 0.5f) * surface.cell;
-    surface.v[k] = local_height(pts, members[k], zmin.v[k], float(c.initial_height), cx, cy);
+    surface.v[k] = local_height(pts, members(k), zmin.v[k], float(c.initial_height), cx, cy);
   });
   harmonic_fill(surface, ground);
 
@@ -222,10 +232,15 @@ GroundResult estimate_ground(std::span<const Vec3f> points, const GroundConfig& 
   else
     throw ConfigError("ground: unknown method '" + config.method + "' (grid or plane)");
 
+  // Dominant plane for the report: least squares over (at most ~kPlanePoints) ground points.
+  constexpr std::size_t kPlanePoints = 20000;
+  const std::size_t stride = std::max<std::size_t>(1, points.size() / kPlanePoints);
   std::vector<std::uint32_t> ground_idx;
   for (std::uint32_t i = 0; i < points.size(); ++i)
-    if (r.height[i] <= config.d_plane) ground_idx.push_back(i);
-  r.num_ground = ground_idx.size();
+    if (r.height[i] <= config.d_plane) {
+      ++r.num_ground;
+      if (i % stride == 0) ground_idx.push_back(i);
+    }
   if (config.method == "grid") {
     if (auto p = fit_plane(points, ground_idx)) {
       r.plane = *p;

@@ -4,11 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_map>
 #include <tbb/parallel_for.h>
 
 #include <deque>
 
+#include "cairn/core/cell_map.hpp"
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
 
@@ -20,36 +20,61 @@ std::size_t SegmentationResult::num_objects() const {
 
 namespace {
 
-/// Stone bottoms: points of the low band (attach_height < h <= d_plane) whose horizontal distance
-/// to a core object point is at most attach_radius are eligible; the clusters grow into the
-/// eligible points breadth-first (a point joins the first cluster that reaches it). Bottoms lie
-/// under the stone's own footprint, so growth never spreads across the surrounding terrain.
+/// xy footprint of the core object points, dilated by a radius, on a grid of radius/2 cells.
+class Footprint {
+ public:
+  Footprint(std::span<const Vec3f> pts, const std::vector<std::vector<std::uint32_t>>& clusters, double radius)
+      : cell_(float(radius / 2.0)) {
+    const Aabb box = bounds(pts);
+    x0_ = box.min.x();
+    y0_ = box.min.y();
+    nx_ = int((box.max.x() - x0_) / cell_) + 1;
+    ny_ = int((box.max.y() - y0_) / cell_) + 1;
+    occupied_.assign(std::size_t(nx_) * std::size_t(ny_), 0);
+    constexpr int kReach = 2;  // radius = 2 cells
+    for (const auto& cl : clusters)
+      for (auto i : cl) {
+        const int cx = ix(pts[i].x()), cy = iy(pts[i].y());
+        for (int y = std::max(0, cy - kReach); y <= std::min(ny_ - 1, cy + kReach); ++y)
+          for (int x = std::max(0, cx - kReach); x <= std::min(nx_ - 1, cx + kReach); ++x)
+            occupied_[std::size_t(y) * nx_ + x] = 1;
+      }
+  }
+  [[nodiscard]] bool covers(const Vec3f& p) const { return occupied_[std::size_t(iy(p.y())) * nx_ + ix(p.x())]; }
+
+ private:
+  [[nodiscard]] int ix(float x) const { return std::clamp(int((x - x0_) / cell_), 0, nx_ - 1); }
+  [[nodiscard]] int iy(float y) const { return std::clamp(int((y - y0_) / cell_), 0, ny_ - 1); }
+  float cell_, x0_ = 0, y0_ = 0;
+  int nx_ = 1, ny_ = 1;
+  std::vector<std::uint8_t> occupied_;
+};
+
+/// Stone bottoms: points of the low band (attach_height < h <= d_plane) under the dilated xy
+/// footprint of the objects (attach_radius, to the resolution of a radius/2 grid) are eligible;
+/// the clusters grow into the eligible points breadth-first from their lowest points (a point
+/// joins the first cluster that reaches it). Bottoms lie under the stone's own footprint, so
+/// growth never spreads across the surrounding terrain.
 void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& height, const SegmentationConfig& c,
                      std::vector<std::vector<std::uint32_t>>& clusters) {
   if (clusters.empty()) return;
-  std::vector<Vec3f> footprint;  // core points projected to z = 0
-  for (const auto& cl : clusters)
-    for (auto i : cl) footprint.emplace_back(pts[i].x(), pts[i].y(), 0.0f);
-  const KdTree flat(footprint);
-  const float r2 = float(c.ground.attach_radius * c.ground.attach_radius);
-  std::vector<std::uint8_t> eligible(pts.size(), 0);
-  tbb::parallel_for(std::size_t{0}, pts.size(), [&](std::size_t i) {
-    if (height[i] <= c.ground.attach_height || height[i] > c.ground.d_plane) return;
-    float d2 = 0;
-    (void)flat.nearest({pts[i].x(), pts[i].y(), 0.0f}, &d2);
-    eligible[i] = d2 <= r2;
-  });
+  const Footprint footprint(pts, clusters, c.ground.attach_radius);
   std::vector<std::uint32_t> band;
   std::vector<Vec3f> band_pts;
   for (std::uint32_t i = 0; i < pts.size(); ++i)
-    if (eligible[i]) band.push_back(i), band_pts.push_back(pts[i]);
+    if (height[i] > c.ground.attach_height && height[i] <= c.ground.d_plane && footprint.covers(pts[i])) {
+      band.push_back(i);
+      band_pts.push_back(pts[i]);
+    }
   if (band.empty()) return;
   const KdTree tree(band_pts);
   std::vector<std::int32_t> owner(band.size(), -1);
   std::deque<std::pair<Vec3f, std::int32_t>> frontier;
-  for (std::size_t s = 0; s < clusters.size(); ++s)
-    for (auto i : clusters[s]) frontier.emplace_back(pts[i], std::int32_t(s));
   const float tol = float(c.clustering.tolerance);
+  const float seed_height = float(c.ground.d_plane) + tol;  // only core points this low can reach
+  for (std::size_t s = 0; s < clusters.size(); ++s)
+    for (auto i : clusters[s])
+      if (height[i] <= seed_height) frontier.emplace_back(pts[i], std::int32_t(s));
   while (!frontier.empty()) {
     const auto [p, s] = frontier.front();
     frontier.pop_front();
@@ -66,24 +91,24 @@ void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& heigh
 
 /// Share of the points lying in xy columns whose z spread exceeds the column height.
 double stacked_fraction(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx, const VerticalityConfig& v) {
-  std::unordered_map<std::uint64_t, std::pair<float, float>> columns;  // key → (zmin, zmax)
+  if (idx.empty()) return 0.0;
   const float inv = 1.0f / float(v.column_size);
   const auto key = [&](const Vec3f& p) {
-    return (std::uint64_t(std::uint32_t(std::int32_t(std::floor(p.x() * inv)))) << 32) |
-           std::uint32_t(std::int32_t(std::floor(p.y() * inv)));
+    return CellMap::key(std::int64_t(std::floor(p.x() * inv)), std::int64_t(std::floor(p.y() * inv)), 0);
   };
-  columns.reserve(idx.size());
-  for (auto i : idx) {
-    auto [it, fresh] = columns.try_emplace(key(pts[i]), pts[i].z(), pts[i].z());
-    it->second.first = std::min(it->second.first, pts[i].z());
-    it->second.second = std::max(it->second.second, pts[i].z());
+  CellMap column(idx.size());
+  std::vector<std::pair<float, float>> range;  // per column: zmin, zmax
+  std::vector<std::uint32_t> column_of(idx.size());
+  for (std::size_t k = 0; k < idx.size(); ++k) {
+    const Vec3f& p = pts[idx[k]];
+    const std::uint32_t c = column.insert(key(p), std::uint32_t(range.size()));
+    if (c == range.size()) range.emplace_back(p.z(), p.z());
+    range[c] = {std::min(range[c].first, p.z()), std::max(range[c].second, p.z())};
+    column_of[k] = c;
   }
   std::size_t stacked = 0;
-  for (auto i : idx) {
-    const auto& [lo, hi] = columns.at(key(pts[i]));
-    stacked += hi - lo > float(v.column_height);
-  }
-  return idx.empty() ? 0.0 : double(stacked) / double(idx.size());
+  for (auto c : column_of) stacked += range[c].second - range[c].first > float(v.column_height);
+  return double(stacked) / double(idx.size());
 }
 
 Segment make_segment(std::span<const Vec3f> pts, std::vector<std::uint32_t> idx, const SegmentationConfig& c,
@@ -101,6 +126,7 @@ Segment make_segment(std::span<const Vec3f> pts, std::vector<std::uint32_t> idx,
     rc.distance = pc.distance;
     rc.max_iterations = pc.iterations;
     rc.refine = false;
+    rc.max_scored_points = std::size_t(std::max(pc.scored_points, 3));
     const PlaneFit fit = fit_plane_ransac(pts, s.indices, rc, rng);
     s.plane_inlier_ratio = fit.found ? double(fit.inliers.size()) / double(s.indices.size()) : 0.0;
     s.planar = s.plane_inlier_ratio > pc.max_inlier_ratio;
@@ -128,12 +154,18 @@ SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& co
   for (std::uint32_t i = 0; i < pts.size(); ++i)
     if (ground.height[i] > config.ground.d_plane) above.push_back(i);
   auto clusters = euclidean_clusters(pts, above, config.clustering);
-  attach_low_band(pts, ground.height, config, clusters);
   res.timings.add("clustering", sw.lap_ms());
+  attach_low_band(pts, ground.height, config, clusters);
+  res.timings.add("attach_bottoms", sw.lap_ms());
 
+  // Shape checks per cluster in parallel; cluster k draws from its own generator (seed, k).
+  std::vector<Segment> checked(clusters.size());
+  tbb::parallel_for(std::size_t{0}, clusters.size(), [&](std::size_t k) {
+    std::mt19937_64 gen(config.seed + 0x9E3779B97F4A7C15ull * (k + 1));
+    checked[k] = make_segment(pts, std::move(clusters[k]), config, gen);
+  });
   std::vector<Segment> objects, planar, terrain;
-  for (auto& cl : clusters) {
-    Segment s = make_segment(pts, std::move(cl), config, rng);
+  for (auto& s : checked) {
     if (s.stacked_fraction < config.verticality.min_stacked_fraction)
       terrain.push_back(std::move(s));
     else
