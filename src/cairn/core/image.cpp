@@ -59,6 +59,7 @@ void write_png(const std::filesystem::path& path, const Image& img) {
 
 Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors, double ppm) {
   constexpr int kMargin = 10;
+  constexpr int kSplat = 2;  // [pixels]
   const Aabb box = bounds(cloud.points);
   const int w = int((box.max.x() - box.min.x()) * ppm) + 2 * kMargin + 1;
   const int h = int((box.max.y() - box.min.y()) * ppm) + 2 * kMargin + 1;
@@ -67,15 +68,18 @@ Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors, d
   const float zr = std::max(1e-3f, box.max.z() - box.min.z());
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const Vec3f& p = cloud.points[i];
-    const int x = kMargin + int((p.x() - box.min.x()) * ppm);
-    const int y = img.height - 1 - kMargin - int((p.y() - box.min.y()) * ppm);
-    if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
-    float& z = zbuf[std::size_t(y) * img.width + x];
-    if (p.z() < z) continue;
-    z = p.z();
+    const int x0 = kMargin + int((p.x() - box.min.x()) * ppm);
+    const int y0 = img.height - 1 - kMargin - int((p.y() - box.min.y()) * ppm);
     const float shade = 0.55f + 0.45f * (p.z() - box.min.z()) / zr;  // higher = brighter
     const Rgb c = colors[i];
-    img.at(x, y) = {std::uint8_t(c.r * shade), std::uint8_t(c.g * shade), std::uint8_t(c.b * shade)};
+    for (int y = y0; y < y0 + kSplat; ++y)  // each point a small square splat
+      for (int x = x0; x < x0 + kSplat; ++x) {
+        if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
+        float& z = zbuf[std::size_t(y) * img.width + x];
+        if (p.z() < z) continue;
+        z = p.z();
+        img.at(x, y) = {std::uint8_t(c.r * shade), std::uint8_t(c.g * shade), std::uint8_t(c.b * shade)};
+      }
   }
   return img;
 }

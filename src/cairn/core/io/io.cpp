@@ -1,6 +1,6 @@
 // Format dispatch, the common post-processing of every reader, and the helpers shared by the
 // format implementations (ply.cpp, pcd.cpp, text.cpp).
-#include "cairn/core/io/io.hpp"
+#include "cairn/core/io/detail.hpp"
 
 #include <algorithm>
 #include <cctype>

@@ -7,7 +7,7 @@
 #include <optional>
 
 #include "cairn/core/error.hpp"
-#include "cairn/core/io/io.hpp"
+#include "cairn/core/io/detail.hpp"
 
 namespace cairn::io {
 namespace {

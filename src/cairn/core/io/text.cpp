@@ -6,7 +6,7 @@
 #include <utility>
 
 #include "cairn/core/error.hpp"
-#include "cairn/core/io/io.hpp"
+#include "cairn/core/io/detail.hpp"
 
 namespace cairn::io {
 namespace {

@@ -1,0 +1,42 @@
+#pragma once
+// Rigid and similarity transforms. `T_a_b` maps points of frame b into frame a (p_a = T_a_b p_b).
+// Rigid transforms are Eigen::Isometry3d; a similarity adds a uniform scale (SfM → metric,
+// Sec. 4.1). JSON form: a 4×4 row-major nested array.
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "cairn/core/point_cloud.hpp"
+
+namespace cairn {
+
+/// p ↦ scale · R · p + t
+struct Similarity {
+  double scale = 1.0;
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+
+  [[nodiscard]] static Similarity from_isometry(const Eigen::Isometry3d& T);
+  [[nodiscard]] Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return scale * (rotation * p) + translation; }
+  /// (this ∘ other)(p) = this(other(p))
+  [[nodiscard]] Similarity operator*(const Similarity& other) const;
+  [[nodiscard]] Similarity inverse() const;
+  [[nodiscard]] Eigen::Matrix4d matrix() const;
+  /// Throws InputError unless m is scale·rotation | t with a proper rotation and positive scale.
+  [[nodiscard]] static Similarity from_matrix(const Eigen::Matrix4d& m);
+};
+
+/// Applies a similarity to a cloud in place: positions in double precision through the cloud's
+/// origin (the new origin is the transformed old one, rounded to whole metres when the cloud was
+/// recentred), normals rotated only.
+void transform_cloud(PointCloud& cloud, const Similarity& S);
+void transform_cloud(PointCloud& cloud, const Eigen::Isometry3d& T);
+
+/// Rotation angle of R [rad] and the distance between translations: the error measures of a
+/// registration against ground truth.
+[[nodiscard]] double rotation_angle(const Eigen::Matrix3d& R);
+
+nlohmann::json matrix_to_json(const Eigen::Matrix4d& m);
+/// Throws InputError unless j is a 4×4 array of numbers.
+Eigen::Matrix4d matrix_from_json(const nlohmann::json& j);
+
+}  // namespace cairn
