@@ -30,6 +30,9 @@ TEST_P(ProceduralSiteSegmentation, EveryStoneIsOneCompleteSegment) {
     const ObjectScore& s = e.objects[std::size_t(k)];
     EXPECT_GE(s.completeness(), 0.95) << "seed " << seed << " stone " << k << (site.stones[k].flat ? " (flat)" : "");
     EXPECT_EQ(s.significant_segments, 1u) << "seed " << seed << " stone " << k << " is split";
+    // Purity (share of the segment that is the stone): measured 0.82–1.00 over 16 seeds; terrain
+    // next to stones on bump crests is the impurity (docs/segmentation.md).
+    EXPECT_GE(s.purity(), 0.8) << "seed " << seed << " stone " << k;
   }
   EXPECT_EQ(e.found(), std::size_t(n));
 }

@@ -22,7 +22,11 @@ nlohmann::json SegmentationScore::to_json(double complete) const {
                    {"terrain_segments", terrain_segments},
                    {"merged_segments", merged}};
   j["completeness"] = nlohmann::json::array();
-  for (const auto& o : objects) j["completeness"].push_back(o.completeness());
+  j["purity"] = nlohmann::json::array();
+  for (const auto& o : objects) {
+    j["completeness"].push_back(o.completeness());
+    j["purity"].push_back(o.purity());
+  }
   return j;
 }
 
@@ -49,6 +53,8 @@ SegmentationScore score_segmentation(const std::vector<std::int32_t>& labels, co
     if (n > o.best_overlap) o.best_overlap = n, o.best_segment = key.second;
     if (double(n) >= split_fraction * double(o.points)) ++o.significant_segments;
   }
+  for (auto& o : s.objects)
+    if (o.best_segment >= 0) o.segment_points = seg[o.best_segment].first;
   s.segments = seg.size();
   for (const auto& [id, st] : seg) s.terrain_segments += st.second * 2 > st.first;
   std::map<std::int32_t, int> owners;

@@ -11,7 +11,10 @@ struct ObjectScore {
   std::size_t best_overlap = 0;        // of them, in the segment holding most of them
   std::int32_t best_segment = -1;
   std::size_t significant_segments = 0;  // segments holding >= split_fraction of the object
+  std::size_t segment_points = 0;        // size of the best segment
   [[nodiscard]] double completeness() const { return points ? double(best_overlap) / double(points) : 0.0; }
+  /// Share of the best segment that is this object.
+  [[nodiscard]] double purity() const { return segment_points ? double(best_overlap) / double(segment_points) : 0.0; }
 };
 
 struct SegmentationScore {
