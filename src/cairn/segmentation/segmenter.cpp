@@ -147,7 +147,6 @@ SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& co
 
   const GroundResult ground = estimate_ground(pts, config.ground, rng);
   res.ground_plane = ground.plane;
-  res.num_ground = ground.num_ground;
   res.timings.add("ground", sw.lap_ms());
 
   std::vector<std::uint32_t> above;
