@@ -130,6 +130,43 @@ void harmonic_fill(Grid& g, const std::vector<std::uint8_t>& fixed) {
       }
 }
 
+/// Object cells take the height of a Gaussian-weighted quadratic fitted to the terrain cells
+/// within `radius` (z = a + b x + c y + d x² + e xy + f y²): unlike the harmonic fill, it follows
+/// the curvature of a bump crest under a stone. Cells with too little support keep the harmonic
+/// value.
+void quadratic_fill(Grid& g, const std::vector<std::uint8_t>& fixed, double radius) {
+  constexpr int kMinSupport = 12;  // terrain cells needed for a quadratic fit
+  const int r = std::max(1, int(std::ceil(radius / g.cell)));
+  const double inv_two_sigma2 = 1.0 / (2.0 * (radius / 2.0) * (radius / 2.0));
+  const Grid src = g;
+  tbb::parallel_for(0, g.ny, [&](int y) {
+    for (int x = 0; x < g.nx; ++x) {
+      if (fixed[std::size_t(y) * g.nx + x]) continue;
+      Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
+      Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();
+      int support = 0;
+      for (int v = std::max(0, y - r); v <= std::min(g.ny - 1, y + r); ++v)
+        for (int u = std::max(0, x - r); u <= std::min(g.nx - 1, x + r); ++u) {
+          if (!fixed[std::size_t(v) * g.nx + u]) continue;
+          const double dx = (u - x) * double(g.cell), dy = (v - y) * double(g.cell);
+          const double d2 = dx * dx + dy * dy;
+          if (d2 > radius * radius) continue;
+          const double w = std::exp(-d2 * inv_two_sigma2);
+          Eigen::Matrix<double, 6, 1> row;
+          row << 1.0, dx, dy, dx * dx, dx * dy, dy * dy;
+          ata += w * row * row.transpose();
+          atb += w * row * double(src.at(u, v));
+          ++support;
+        }
+      if (support < kMinSupport) continue;
+      const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata);
+      if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) continue;
+      const double z = ldlt.solve(atb)[0];
+      if (std::isfinite(z)) g.at(x, y) = float(z);
+    }
+  });
+}
+
 /// Least-squares z = a + b·dx + c·dy over the points of a cell within `band` above its minimum,
 /// refit once on the points within half the band of the first fit; returns a (height at centre).
 float local_height(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx, float zmin,
@@ -211,6 +248,7 @@ GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& 
     surface.v[k] = local_height(pts, members(k), zmin.v[k], float(c.initial_height), cx, cy);
   });
   harmonic_fill(surface, ground);
+  if (c.fill_radius > 0) quadratic_fill(surface, ground, c.fill_radius);
 
   GroundResult r;
   r.height.resize(pts.size());

@@ -28,6 +28,11 @@ struct GroundConfig {
   double attach_height = 0.02;  // points higher than this (but within d_plane) next to an
                                 // object join it: keeps the bottoms of stones [m]
   double attach_radius = 0.15;  // ... if within this horizontal distance of the object [m]
+  double attach_distance = 0.12;  // [m] ... and within this 3-D distance of an object point
+  bool attach_chain = false;    // attached points may attach further ones (default: one hop —
+                                // chains run on through terrain noise under a stone's bulge)
+  double fill_radius = 1.5;     // grid method: terrain under objects from a quadratic fit to the
+                                // terrain cells within this radius (0: harmonic fill only) [m]
 
   template <class V>
   void visit(V& v) {
@@ -43,6 +48,9 @@ struct GroundConfig {
     v("attach_height", attach_height,
       "points above this height next to an object are attached to it (stone bottoms) [m]");
     v("attach_radius", attach_radius, "max. horizontal distance of attached points from the object [m]");
+    v("attach_distance", attach_distance, "max. 3-D distance of an attached point from the object [m]");
+    v("attach_chain", attach_chain, "attached low points may attach further ones (false: one hop from the object)");
+    v("fill_radius", fill_radius, "grid method: quadratic fit radius for the ground under objects (0: harmonic only) [m]");
   }
 };
 

@@ -51,10 +51,11 @@ class Footprint {
 };
 
 /// Stone bottoms: points of the low band (attach_height < h <= d_plane) under the dilated xy
-/// footprint of the objects (attach_radius, to the resolution of a radius/2 grid) are eligible;
-/// the clusters grow into the eligible points breadth-first from their lowest points (a point
-/// joins the first cluster that reaches it). Bottoms lie under the stone's own footprint, so
-/// growth never spreads across the surrounding terrain.
+/// footprint of the objects (attach_radius, to the resolution of a radius/2 grid) join the
+/// cluster of an object point within attach_distance (the first cluster that reaches them).
+/// Visible stone bottoms continue straight up into the stone's core points, so one hop suffices;
+/// with attach_chain, attached points attach further ones breadth-first (more complete, but the
+/// chain runs on through terrain points that noise lifts into the band).
 void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& height, const SegmentationConfig& c,
                      std::vector<std::vector<std::uint32_t>>& clusters) {
   if (clusters.empty()) return;
@@ -70,7 +71,7 @@ void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& heigh
   const KdTree tree(band_pts);
   std::vector<std::int32_t> owner(band.size(), -1);
   std::deque<std::pair<Vec3f, std::int32_t>> frontier;
-  const float tol = float(c.clustering.tolerance);
+  const float tol = float(c.ground.attach_distance);
   const float seed_height = float(c.ground.d_plane) + tol;  // only core points this low can reach
   for (std::size_t s = 0; s < clusters.size(); ++s)
     for (auto i : clusters[s])
@@ -81,7 +82,7 @@ void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& heigh
     tree.for_each_in_radius(p, tol, [&, s = s](std::uint32_t k, float) {
       if (owner[k] >= 0) return;
       owner[k] = s;
-      frontier.emplace_back(band_pts[k], s);
+      if (c.ground.attach_chain) frontier.emplace_back(band_pts[k], s);
     });
   }
   for (std::size_t k = 0; k < band.size(); ++k)
