@@ -132,9 +132,10 @@ void harmonic_fill(Grid& g, const std::vector<std::uint8_t>& fixed) {
 
 /// Object cells take the height of a Gaussian-weighted quadratic fitted to the terrain cells
 /// within `radius` (z = a + b x + c y + d x² + e xy + f y²): unlike the harmonic fill, it follows
-/// the curvature of a bump crest under a stone. Cells with too little support keep the harmonic
-/// value.
-void quadratic_fill(Grid& g, const std::vector<std::uint8_t>& fixed, double radius) {
+/// the curvature of a bump crest under a stone. The result is clamped to the support's height
+/// range widened by `margin` (no runaway extrapolation from one-sided support); cells with too
+/// little support keep the harmonic value.
+void quadratic_fill(Grid& g, const std::vector<std::uint8_t>& fixed, double radius, double margin) {
   constexpr int kMinSupport = 12;  // terrain cells needed for a quadratic fit
   const int r = std::max(1, int(std::ceil(radius / g.cell)));
   const double inv_two_sigma2 = 1.0 / (2.0 * (radius / 2.0) * (radius / 2.0));
@@ -145,6 +146,7 @@ void quadratic_fill(Grid& g, const std::vector<std::uint8_t>& fixed, double radi
       Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
       Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();
       int support = 0;
+      double lo = std::numeric_limits<double>::max(), hi = std::numeric_limits<double>::lowest();
       for (int v = std::max(0, y - r); v <= std::min(g.ny - 1, y + r); ++v)
         for (int u = std::max(0, x - r); u <= std::min(g.nx - 1, x + r); ++u) {
           if (!fixed[std::size_t(v) * g.nx + u]) continue;
@@ -156,13 +158,15 @@ void quadratic_fill(Grid& g, const std::vector<std::uint8_t>& fixed, double radi
           row << 1.0, dx, dy, dx * dx, dx * dy, dy * dy;
           ata += w * row * row.transpose();
           atb += w * row * double(src.at(u, v));
+          lo = std::min(lo, double(src.at(u, v)));
+          hi = std::max(hi, double(src.at(u, v)));
           ++support;
         }
       if (support < kMinSupport) continue;
       const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata);
       if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) continue;
       const double z = ldlt.solve(atb)[0];
-      if (std::isfinite(z)) g.at(x, y) = float(z);
+      if (std::isfinite(z)) g.at(x, y) = float(std::clamp(z, lo - margin, hi + margin));
     }
   });
 }
@@ -248,7 +252,7 @@ GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& 
     surface.v[k] = local_height(pts, members(k), zmin.v[k], float(c.initial_height), cx, cy);
   });
   harmonic_fill(surface, ground);
-  if (c.fill_radius > 0) quadratic_fill(surface, ground, c.fill_radius);
+  if (c.fill_radius > 0) quadratic_fill(surface, ground, c.fill_radius, c.slope * c.fill_radius);
 
   GroundResult r;
   r.height.resize(pts.size());
