@@ -14,26 +14,6 @@
 
 namespace cairn {
 
-DisjointSets::DisjointSets(std::size_t n) : parent_(n) {
-  std::iota(parent_.begin(), parent_.end(), 0u);
-}
-
-std::uint32_t DisjointSets::find(std::uint32_t a) {
-  while (parent_[a] != a) {
-    parent_[a] = parent_[parent_[a]];
-    a = parent_[a];
-  }
-  return a;
-}
-
-void DisjointSets::unite(std::uint32_t a, std::uint32_t b) {
-  a = find(a);
-  b = find(b);
-  if (a == b) return;
-  if (a < b) std::swap(a, b);
-  parent_[a] = b;
-}
-
 namespace {
 
 /// Lock-free union-find (compare-and-swap linking of the larger root under the smaller): safe
@@ -123,6 +103,7 @@ std::vector<std::vector<std::uint32_t>> euclidean_clusters(std::span<const Vec3f
   tbb::parallel_for(std::size_t{0}, cells.size(), [&](std::size_t ci) {
     const Cell& cell = cells[ci];
     const Eigen::Array3i& c = cell.coord;
+    bool united = false;  // all points of this cell in one component (once true, stays true)
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
@@ -132,9 +113,12 @@ std::vector<std::vector<std::uint32_t>> euclidean_clusters(std::span<const Vec3f
                                              : lookup.find(CellMap::key(c[0] + dx, c[1] + dy, c[2] + dz));
           if (o == CellMap::kAbsent) continue;
           const Cell& other = cells[o];
-          if (order != 0 && all_in(sets, keyed, other, sets.find(keyed[cell.begin].second)) &&
-              all_in(sets, keyed, cell, sets.find(keyed[cell.begin].second)))
-            continue;  // both cells already in one component: every cross pair is connected
+          if (order != 0) {  // the self pair (order 0) comes first
+            const std::uint32_t root = sets.find(keyed[cell.begin].second);
+            united = united || all_in(sets, keyed, cell, root);
+            if (united && all_in(sets, keyed, other, root))
+              continue;  // both cells already in one component: every cross pair is connected
+          }
           for (auto a = cell.begin; a < cell.end; ++a) {
             const std::uint32_t ia = keyed[a].second;
             const Vec3f& pa = points[indices[ia]];

@@ -27,15 +27,4 @@ struct ClusterConfig {
 [[nodiscard]] std::vector<std::vector<std::uint32_t>> euclidean_clusters(
     std::span<const Vec3f> points, std::span<const std::uint32_t> indices, const ClusterConfig& config);
 
-/// Union-find over n elements with path halving; unite keeps the smaller root.
-class DisjointSets {
- public:
-  explicit DisjointSets(std::size_t n);
-  std::uint32_t find(std::uint32_t a);
-  void unite(std::uint32_t a, std::uint32_t b);
-
- private:
-  std::vector<std::uint32_t> parent_;
-};
-
 }  // namespace cairn

@@ -12,23 +12,19 @@
 #include <numbers>
 
 #include "cairn/core/error.hpp"
+#include "cairn/segmentation/grid2d.hpp"
 
 namespace cairn {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr int kLaplaceIterations = 200;   // harmonic fill of object/empty cells
-constexpr std::size_t kMaxGridCells = 50'000'000;
 
 /// A 2-D grid of float values over the xy extent of the points.
-struct Grid {
-  int nx = 0, ny = 0;
-  float x0 = 0, y0 = 0, cell = 1;
+struct Grid : GridFrame {
   std::vector<float> v;
-  float& at(int ix, int iy) { return v[std::size_t(iy) * nx + ix]; }
-  [[nodiscard]] float at(int ix, int iy) const { return v[std::size_t(iy) * nx + ix]; }
-  [[nodiscard]] int ix(float x) const { return std::clamp(int((x - x0) / cell), 0, nx - 1); }
-  [[nodiscard]] int iy(float y) const { return std::clamp(int((y - y0) / cell), 0, ny - 1); }
+  float& at(int x, int y) { return v[index(x, y)]; }
+  [[nodiscard]] float at(int x, int y) const { return v[index(x, y)]; }
   /// Bilinear interpolation between cell centres.
   [[nodiscard]] float bilinear(float x, float y) const {
     const float fx = std::clamp((x - x0) / cell - 0.5f, 0.0f, float(nx - 1));
@@ -41,16 +37,8 @@ struct Grid {
 };
 
 Grid make_grid(std::span<const Vec3f> pts, float cell) {
-  const Aabb box = bounds(pts);
-  Grid g;
-  g.cell = cell;
-  g.x0 = box.min.x();
-  g.y0 = box.min.y();
-  g.nx = int((box.max.x() - box.min.x()) / cell) + 1;
-  g.ny = int((box.max.y() - box.min.y()) / cell) + 1;
-  if (std::size_t(g.nx) * std::size_t(g.ny) > kMaxGridCells)
-    throw ConfigError("ground: cell_size " + std::to_string(cell) + " m is too small for the extent");
-  g.v.assign(std::size_t(g.nx) * g.ny, kInf);
+  Grid g{GridFrame::covering(pts, cell, "ground: cell_size"), {}};
+  g.v.assign(g.num_cells(), kInf);
   return g;
 }
 
@@ -223,7 +211,7 @@ GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& 
   // Points sorted by cell (counting sort): cell k holds order[begin[k] .. begin[k + 1]).
   std::vector<std::uint32_t> cell_of(pts.size()), begin(zmin.v.size() + 1, 0), order(pts.size());
   for (std::uint32_t i = 0; i < pts.size(); ++i) {
-    const std::size_t k = std::size_t(zmin.iy(pts[i].y())) * zmin.nx + zmin.ix(pts[i].x());
+    const std::size_t k = zmin.index_of(pts[i]);
     cell_of[i] = std::uint32_t(k);
     ++begin[k + 1];
     zmin.v[k] = std::min(zmin.v[k], pts[i].z());
@@ -278,11 +266,8 @@ GroundResult estimate_ground(std::span<const Vec3f> points, const GroundConfig& 
   constexpr std::size_t kPlanePoints = 20000;
   const std::size_t stride = std::max<std::size_t>(1, points.size() / kPlanePoints);
   std::vector<std::uint32_t> ground_idx;
-  for (std::uint32_t i = 0; i < points.size(); ++i)
-    if (r.height[i] <= config.d_plane) {
-      ++r.num_ground;
-      if (i % stride == 0) ground_idx.push_back(i);
-    }
+  for (std::uint32_t i = 0; i < points.size(); i += std::uint32_t(stride))
+    if (r.height[i] <= config.d_plane) ground_idx.push_back(i);
   if (config.method == "grid") {
     if (auto p = fit_plane(points, ground_idx)) {
       r.plane = *p;

@@ -57,8 +57,6 @@ struct GroundConfig {
 struct GroundResult {
   std::vector<float> height;  // per point: height above the local ground [m]
   Plane plane;                // dominant ground plane (least squares over the ground points)
-  std::size_t num_ground = 0; // points with height <= d_plane
-  [[nodiscard]] bool is_ground(std::size_t i, double d_plane) const { return height[i] <= d_plane; }
 };
 
 /// Heights above the ground for every point. Throws ConfigError on invalid parameters and

@@ -7,10 +7,12 @@
 #include <tbb/parallel_for.h>
 
 #include <deque>
+#include <limits>
 
 #include "cairn/core/cell_map.hpp"
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
+#include "cairn/segmentation/grid2d.hpp"
 
 namespace cairn {
 
@@ -24,29 +26,21 @@ namespace {
 class Footprint {
  public:
   Footprint(std::span<const Vec3f> pts, const std::vector<std::vector<std::uint32_t>>& clusters, double radius)
-      : cell_(float(radius / 2.0)) {
-    const Aabb box = bounds(pts);
-    x0_ = box.min.x();
-    y0_ = box.min.y();
-    nx_ = int((box.max.x() - x0_) / cell_) + 1;
-    ny_ = int((box.max.y() - y0_) / cell_) + 1;
-    occupied_.assign(std::size_t(nx_) * std::size_t(ny_), 0);
+      : frame_(GridFrame::covering(pts, float(radius / 2.0), "segmentation: ground.attach_radius")),
+        occupied_(frame_.num_cells(), 0) {
     constexpr int kReach = 2;  // radius = 2 cells
     for (const auto& cl : clusters)
       for (auto i : cl) {
-        const int cx = ix(pts[i].x()), cy = iy(pts[i].y());
-        for (int y = std::max(0, cy - kReach); y <= std::min(ny_ - 1, cy + kReach); ++y)
-          for (int x = std::max(0, cx - kReach); x <= std::min(nx_ - 1, cx + kReach); ++x)
-            occupied_[std::size_t(y) * nx_ + x] = 1;
+        const int cx = frame_.ix(pts[i].x()), cy = frame_.iy(pts[i].y());
+        for (int y = std::max(0, cy - kReach); y <= std::min(frame_.ny - 1, cy + kReach); ++y)
+          for (int x = std::max(0, cx - kReach); x <= std::min(frame_.nx - 1, cx + kReach); ++x)
+            occupied_[frame_.index(x, y)] = 1;
       }
   }
-  [[nodiscard]] bool covers(const Vec3f& p) const { return occupied_[std::size_t(iy(p.y())) * nx_ + ix(p.x())]; }
+  [[nodiscard]] bool covers(const Vec3f& p) const { return occupied_[frame_.index_of(p)]; }
 
  private:
-  [[nodiscard]] int ix(float x) const { return std::clamp(int((x - x0_) / cell_), 0, nx_ - 1); }
-  [[nodiscard]] int iy(float y) const { return std::clamp(int((y - y0_) / cell_), 0, ny_ - 1); }
-  float cell_, x0_ = 0, y0_ = 0;
-  int nx_ = 1, ny_ = 1;
+  GridFrame frame_;
   std::vector<std::uint8_t> occupied_;
 };
 
@@ -127,7 +121,8 @@ Segment make_segment(std::span<const Vec3f> pts, std::vector<std::uint32_t> idx,
     rc.distance = pc.distance;
     rc.max_iterations = pc.iterations;
     rc.refine = false;
-    rc.max_scored_points = std::size_t(std::max(pc.scored_points, 3));
+    rc.max_scored_points = pc.scored_points > 0 ? std::size_t(pc.scored_points)
+                                                : std::numeric_limits<std::size_t>::max();  // 0: all points
     const PlaneFit fit = fit_plane_ransac(pts, s.indices, rc, rng);
     s.plane_inlier_ratio = fit.found ? double(fit.inliers.size()) / double(s.indices.size()) : 0.0;
     s.planar = s.plane_inlier_ratio > pc.max_inlier_ratio;

@@ -15,7 +15,7 @@ struct PlanarityConfig {
   double distance = 0.05;         // RANSAC inlier distance for the planarity test [m]
   double max_inlier_ratio = 0.85; // segments with a larger share of plane inliers are planar
   int iterations = 200;
-  int scored_points = 1024;       // hypotheses scored on a random subset of this size
+  int scored_points = 1024;       // hypotheses scored on a random subset of this size (0: all)
 
   template <class V>
   void visit(V& v) {
@@ -23,7 +23,7 @@ struct PlanarityConfig {
     v("distance", distance, "RANSAC inlier distance of the planarity check [m]");
     v("max_inlier_ratio", max_inlier_ratio, "a segment is planar above this share of plane inliers");
     v("iterations", iterations, "RANSAC iterations of the planarity check");
-    v("scored_points", scored_points, "RANSAC hypotheses are scored on a random subset of this size");
+    v("scored_points", scored_points, "RANSAC hypotheses are scored on a random subset of this size (0: all points)");
   }
 };
 
