@@ -58,9 +58,22 @@ void write_png(const std::filesystem::path& path, const Image& img) {
 }
 
 Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors, double ppm) {
+  return render_top_view(cloud, colors, ppm, bounds(cloud.points));
+}
+
+Image side_by_side(const Image& left, const Image& right, int gap) {
+  Image out(left.width + gap + right.width, std::max(left.height, right.height));
+  for (int y = 0; y < left.height; ++y)
+    for (int x = 0; x < left.width; ++x) out.at(x, y) = left.pixels[std::size_t(y) * left.width + x];
+  for (int y = 0; y < right.height; ++y)
+    for (int x = 0; x < right.width; ++x)
+      out.at(left.width + gap + x, y) = right.pixels[std::size_t(y) * right.width + x];
+  return out;
+}
+
+Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors, double ppm, const Aabb& box) {
   constexpr int kMargin = 10;
   constexpr int kSplat = 2;  // [pixels]
-  const Aabb box = bounds(cloud.points);
   const int w = int((box.max.x() - box.min.x()) * ppm) + 2 * kMargin + 1;
   const int h = int((box.max.y() - box.min.y()) * ppm) + 2 * kMargin + 1;
   Image img(std::max(w, 1), std::max(h, 1));
@@ -68,6 +81,7 @@ Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors, d
   const float zr = std::max(1e-3f, box.max.z() - box.min.z());
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const Vec3f& p = cloud.points[i];
+    if (p.x() < box.min.x() || p.y() < box.min.y() || p.x() > box.max.x() || p.y() > box.max.y()) continue;
     const int x0 = kMargin + int((p.x() - box.min.x()) * ppm);
     const int y0 = img.height - 1 - kMargin - int((p.y() - box.min.y()) * ppm);
     const float shade = 0.55f + 0.45f * (p.z() - box.min.z()) / zr;  // higher = brighter

@@ -22,5 +22,12 @@ void write_png(const std::filesystem::path& path, const Image& image);
 /// ones, shaded by height. `pixels_per_metre` sets the scale.
 [[nodiscard]] Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors,
                                     double pixels_per_metre);
+/// The same over a given box (points outside it are left out), so several views share one scale
+/// and extent. Height shading uses the box's z range.
+[[nodiscard]] Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors,
+                                    double pixels_per_metre, const Aabb& box);
+
+/// Two images next to each other with a white gap of `gap` pixels.
+[[nodiscard]] Image side_by_side(const Image& left, const Image& right, int gap = 20);
 
 }  // namespace cairn

@@ -1,5 +1,7 @@
 #include "cairn/core/transform.hpp"
 
+#include <algorithm>
+
 #include <cmath>
 
 #include "cairn/core/error.hpp"
@@ -74,6 +76,21 @@ Eigen::Matrix4d matrix_from_json(const nlohmann::json& j) {
     }
   }
   return m;
+}
+
+Eigen::Isometry3d interpolate_pose(const std::vector<StampedPose>& poses, double t) {
+  if (poses.empty()) throw InputError("interpolate_pose: no poses");
+  if (t <= poses.front().time) return poses.front().pose;
+  if (t >= poses.back().time) return poses.back().pose;
+  const auto it = std::upper_bound(poses.begin(), poses.end(), t,
+                                   [](double v, const StampedPose& p) { return v < p.time; });
+  const StampedPose& b = *it;
+  const StampedPose& a = *(it - 1);
+  const double s = (t - a.time) / (b.time - a.time);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = (1 - s) * a.pose.translation() + s * b.pose.translation();
+  T.linear() = Eigen::Quaterniond(a.pose.linear()).slerp(s, Eigen::Quaterniond(b.pose.linear())).toRotationMatrix();
+  return T;
 }
 
 }  // namespace cairn

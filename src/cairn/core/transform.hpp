@@ -3,6 +3,7 @@
 // Rigid transforms are Eigen::Isometry3d; a similarity adds a uniform scale (SfM → metric,
 // Sec. 4.1). JSON form: a 4×4 row-major nested array.
 #include <Eigen/Geometry>
+#include <vector>
 #include <nlohmann/json.hpp>
 
 #include "cairn/core/point_cloud.hpp"
@@ -34,6 +35,17 @@ void transform_cloud(PointCloud& cloud, const Eigen::Isometry3d& T);
 /// Rotation angle of R [rad] and the distance between translations: the error measures of a
 /// registration against ground truth.
 [[nodiscard]] double rotation_angle(const Eigen::Matrix3d& R);
+
+/// A pose at a time (e.g. the state estimate of the cabin, T_world_cabin).
+struct StampedPose {
+  double time = 0.0;  // [s]
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+};
+
+/// Pose at time t: linear interpolation of the translation and slerp of the rotation between the
+/// two neighbouring samples, clamped at the ends. `poses` must be sorted by time; throws
+/// InputError when it is empty.
+[[nodiscard]] Eigen::Isometry3d interpolate_pose(const std::vector<StampedPose>& poses, double t);
 
 nlohmann::json matrix_to_json(const Eigen::Matrix4d& m);
 /// Throws InputError unless j is a 4×4 array of numbers.
