@@ -4,13 +4,16 @@ set -euo pipefail
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # kernels: eigen nanoflann tbb; config/CLI/logging: yaml-cpp cli11 spdlog fmt nlohmann-json;
-# pictures: zlib; tests and benchmarks: gtest gmock benchmark; peers (tests/bench only): pcl
+# pictures: zlib; simulator: embree (ray casting), mujoco (grasp physics); mapping: ceres;
+# object database: sqlite3; tests and benchmarks: gtest gmock benchmark;
+# peers (tests/bench only, never linked by the library): pcl, open3d
 PACKAGES=(
   build-essential cmake ninja-build pkg-config python3
   libeigen3-dev libnanoflann-dev libtbb-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev zlib1g-dev
+  libembree-dev libmujoco-dev libceres-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libpcl-dev
+  libpcl-dev libopen3d-dev
 )
 export DEBIAN_FRONTEND=noninteractive
 missing=()

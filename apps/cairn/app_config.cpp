@@ -11,9 +11,8 @@ void CommonOptions::add_to(CLI::App& cmd) {
   cmd.add_option("--log-level", log_level, "trace, debug, info, warn, error, off");
 }
 
-AppConfig CommonOptions::load() const {
+AppConfig CommonOptions::load(AppConfig cfg) const {
   set_log_level(log_level);
-  AppConfig cfg;
   if (!config_file.empty()) config::load_yaml_file(cfg, config_file);
   for (const auto& o : overrides) config::apply_override(cfg, o);
   return cfg;

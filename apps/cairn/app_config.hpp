@@ -8,6 +8,7 @@
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/segmentation/segmenter.hpp"
+#include "cairn/sim/simulation.hpp"
 
 namespace cairn::app {
 
@@ -15,12 +16,14 @@ struct AppConfig {
   VoxelGridConfig voxel;
   NormalConfig normals;
   SegmentationConfig segmentation;
+  sim::SimulationConfig simulation;  // generic defaults; `cairn simulate` starts from its scenario
 
   template <class V>
   void visit(V& v) {
     v("voxel", voxel, "voxel-grid downsampling (Sec. 4.2, Table 3)");
     v("normals", normals, "PCA normal estimation");
     v("segmentation", segmentation, "map segmentation (Sec. 4.3)");
+    v("simulation", simulation, "simulator: site, excavator, LiDARs, state estimation, drone");
   }
 };
 
@@ -31,7 +34,9 @@ struct CommonOptions {
   std::string log_level = "info";
   void add_to(CLI::App& cmd);
   /// Defaults, then the YAML file, then the --set overrides (in order). Throws ConfigError.
-  [[nodiscard]] AppConfig load() const;
+  [[nodiscard]] AppConfig load() const { return load(AppConfig{}); }
+  /// The same on top of `base` instead of the defaults.
+  [[nodiscard]] AppConfig load(AppConfig base) const;
 };
 
 /// Exit codes of the command line contract.

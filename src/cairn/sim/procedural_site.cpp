@@ -2,7 +2,10 @@
 
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
+#include <filesystem>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -97,6 +100,18 @@ void validate(const StoneConfig& c) {
           "StoneConfig: placement_radius must be >= 0");
   require(c.flat_fraction >= 0 && c.flat_fraction <= 1, "StoneConfig: flat_fraction not in [0,1]");
   require(std::isfinite(c.embed_depth), "StoneConfig: embed_depth not finite");
+  require(std::isfinite(c.center_x) && std::isfinite(c.center_y), "StoneConfig: centre not finite");
+  require(std::isfinite(c.placement_aspect) && c.placement_aspect > 0,
+          "StoneConfig: placement_aspect must be positive");
+  require(std::isfinite(c.keep_out_x) && std::isfinite(c.keep_out_y) &&
+              std::isfinite(c.keep_out_radius) && c.keep_out_radius >= 0,
+          "StoneConfig: keep-out disc invalid");
+  require(c.arrangement == "spread" || c.arrangement == "pile",
+          "StoneConfig: arrangement must be 'spread' or 'pile'");
+  require(std::isfinite(c.pile_gap) && c.pile_gap > 0, "StoneConfig: pile_gap must be positive");
+  require(c.real_fraction >= 0 && c.real_fraction <= 1, "StoneConfig: real_fraction not in [0,1]");
+  require(c.real_fraction == 0 || !c.real_meshes.empty(),
+          "StoneConfig: real_fraction > 0 needs real_meshes");
 }
 
 void validate(const SamplingConfig& c, const TerrainConfig& t) {
@@ -275,17 +290,23 @@ struct Footprint {
   double radius;  // horizontal disc around the centroid containing the whole stone
 };
 
+bool outside_keep_out(const Vec2d& spot, double radius, const StoneConfig& c) {
+  return c.keep_out_radius <= 0 ||
+         (spot - Vec2d(c.keep_out_x, c.keep_out_y)).norm() >= radius + c.keep_out_radius;
+}
+
 /// Rejection sampling in the placement disc; footprint discs keep min_spacing between them.
 Vec2d free_spot(double radius, const std::vector<Footprint>& placed, const StoneConfig& c,
                 std::mt19937_64& rng) {
   for (int attempt = 0; attempt < kMaxPlacementAttempts; ++attempt) {
     const double r = c.placement_radius * std::sqrt(uniform01(rng));
     const double angle = kTwoPi * uniform01(rng);
-    const Vec2d spot(r * std::cos(angle), r * std::sin(angle));
+    const Vec2d spot(c.center_x + r * std::cos(angle),
+                     c.center_y + c.placement_aspect * r * std::sin(angle));
     const bool free = std::all_of(placed.begin(), placed.end(), [&](const Footprint& f) {
       return (spot - f.centre).norm() >= radius + f.radius + c.min_spacing;
     });
-    if (free) return spot;
+    if (free && outside_keep_out(spot, radius, c)) return spot;
   }
   throw ConfigError("generate_site: cannot place stone " + std::to_string(placed.size() + 1) +
                     " of " + std::to_string(c.count) + " with min_spacing " +
@@ -302,28 +323,93 @@ double resting_height(const std::vector<Eigen::Vector3d>& v, const Vec2d& spot,
   return -embed_depth - lowest;
 }
 
-/// One stone: shape, orientation, spot and resting height.
-Stone make_stone(bool flat, std::vector<Footprint>& placed, const StoneConfig& c,
-                 const Terrain& terrain, std::mt19937_64& rng) {
+/// Shape of one stone in its local frame (centred at the volume centroid, shortest axis ~z).
+struct StoneShape {
+  RawMesh local;
+  double volume = 0.0;
+  bool flat = false;
+  std::string source = "procedural";
+};
+
+/// Whether the stone (vertices relative to its centroid, centroid at `centroid`) intersects any
+/// placed stone: a vertex of one inside the other.
+bool collides(const std::vector<Eigen::Vector3d>& v, const Eigen::Vector3d& centroid,
+              const std::vector<Stone>& placed, const std::vector<SolidMesh>& solids) {
+  Eigen::AlignedBox3d box;
+  for (const auto& p : v) box.extend(p + centroid);
+  for (std::size_t k = 0; k < placed.size(); ++k) {
+    if (!box.intersects(placed[k].bounds)) continue;
+    for (const auto& p : v)
+      if (solids[k].contains(p + centroid)) return true;
+  }
+  return false;
+}
+
+/// Pile: the stone approaches the pile's centre along a random direction and stops where it
+/// (almost) touches a stone placed before (bisection on the distance, tolerance pile_gap).
+Vec2d pile_spot(const std::vector<Eigen::Vector3d>& v, const RawMesh& local, double radius,
+                const std::vector<Stone>& placed, const std::vector<SolidMesh>& solids,
+                const StoneConfig& c, const Terrain& terrain, std::mt19937_64& rng) {
+  const Vec2d centre(c.center_x, c.center_y);
+  if (placed.empty()) return centre;
+  const double angle = kTwoPi * uniform01(rng);
+  const Vec2d dir(std::cos(angle), std::sin(angle));
+  const auto blocked_at = [&](double d) {
+    const Vec2d spot = centre + d * dir;
+    const Eigen::Vector3d centroid(spot.x(), spot.y(), resting_height(v, spot, terrain, c.embed_depth));
+    if (collides(v, centroid, placed, solids)) return true;
+    // The other way round: a placed stone's vertex inside the new one.
+    std::vector<Eigen::Vector3d> w;
+    w.reserve(v.size());
+    for (const auto& p : v) w.push_back(p + centroid);
+    const SolidMesh mine(to_mesh(w, local.t));
+    for (const auto& stone : placed) {
+      if (!stone.bounds.intersects(mine.bounds())) continue;
+      for (std::size_t i = 0; i < stone.mesh.vertices.size(); ++i)
+        if (mine.contains(stone.mesh.vertices.world(i))) return true;
+    }
+    return false;
+  };
+  double far = radius;
+  for (const auto& stone : placed) {
+    const double r = (stone.centroid.head<2>() - centre).norm() +
+                     0.5 * stone.bounds.sizes().head<2>().norm();
+    far = std::max(far, r + radius + c.pile_gap);
+  }
+  double near = 0.0;
+  if (!blocked_at(near)) return centre + near * dir;  // cannot happen with a stone at the centre
+  while (far - near > c.pile_gap) {
+    const double mid = 0.5 * (near + far);
+    (blocked_at(mid) ? near : far) = mid;
+  }
+  return centre + far * dir;
+}
+
+/// One stone: orientation, spot and resting height for a given shape.
+Stone place_stone(StoneShape shape, std::vector<Footprint>& footprints, const std::vector<Stone>& placed,
+                  const std::vector<SolidMesh>& solids, const StoneConfig& c, const Terrain& terrain,
+                  std::mt19937_64& rng) {
   Stone stone;
-  stone.flat = flat;
-  stone.volume = uniform(rng, {c.min_volume, c.max_volume});
-  const RawMesh local = to_raw(make_stone_mesh(stone.volume, flat, rng));
+  stone.flat = shape.flat;
+  stone.volume = shape.volume;
+  stone.source = shape.source;
   stone.yaw = kTwoPi * uniform01(rng);
-  const Eigen::Matrix3d rotation = resting_rotation(flat, stone.yaw, rng);
+  const Eigen::Matrix3d rotation = resting_rotation(shape.flat, stone.yaw, rng);
   std::vector<Eigen::Vector3d> v;
-  v.reserve(local.v.size());
+  v.reserve(shape.local.v.size());
   double radius = 0.0;
-  for (const auto& p : local.v) {
+  for (const auto& p : shape.local.v) {
     v.push_back(rotation * p);
     radius = std::max(radius, v.back().head<2>().norm());
   }
-  const Vec2d spot = free_spot(radius, placed, c, rng);
-  placed.push_back({spot, radius});
+  const Vec2d spot = c.arrangement == "pile"
+                         ? pile_spot(v, shape.local, radius, placed, solids, c, terrain, rng)
+                         : free_spot(radius, footprints, c, rng);
+  footprints.push_back({spot, radius});
   stone.centroid =
       Eigen::Vector3d(spot.x(), spot.y(), resting_height(v, spot, terrain, c.embed_depth));
   for (auto& p : v) p += stone.centroid;
-  stone.mesh = to_mesh(v, local.t);
+  stone.mesh = to_mesh(v, shape.local.t);
   stone.bounds = bounding_box(to_raw(stone.mesh).v);
   return stone;
 }
@@ -550,9 +636,47 @@ Site generate_site(const SiteConfig& config, std::uint64_t seed) {
   site.terrain_config = config.terrain;
   site.stone_config = config.stones;
   site.terrain = Terrain::random(config.terrain, rng);
-  std::vector<Footprint> placed;
-  for (bool flat : flat_flags(config.stones, rng))
-    site.stones.push_back(make_stone(flat, placed, config.stones, site.terrain, rng));
+  const StoneConfig& c = config.stones;
+  // Real meshes: loaded once, prepared at unit volume; which stones use them is drawn only when
+  // asked for, so procedural sites keep their random sequence.
+  std::vector<io::Mesh> real;
+  for (const auto& path : c.real_meshes) {
+    if (c.real_fraction > 0) real.push_back(prepare_real_stone_mesh(io::read_ply_mesh(path), 1.0));
+  }
+  std::vector<bool> use_real(static_cast<std::size_t>(c.count), false);
+  std::vector<std::size_t> real_index(use_real.size(), 0);
+  if (!real.empty()) {
+    const auto n_real = static_cast<std::size_t>(std::lround(c.real_fraction * c.count));
+    std::vector<std::size_t> order(use_real.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    for (std::size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[uniform_index(rng, i)]);
+    for (std::size_t i = 0; i < std::min(n_real, order.size()); ++i) {
+      use_real[order[i]] = true;
+      real_index[order[i]] = i % real.size();
+    }
+  }
+  std::vector<Footprint> footprints;
+  std::vector<SolidMesh> solids;
+  const std::vector<bool> flat = flat_flags(c, rng);
+  for (std::size_t k = 0; k < flat.size(); ++k) {
+    StoneShape shape;
+    shape.volume = uniform(rng, {c.min_volume, c.max_volume});
+    if (use_real[k]) {
+      const io::Mesh& unit = real[real_index[k]];
+      shape.local = to_raw(unit);
+      const double scale = std::cbrt(shape.volume);
+      for (auto& p : shape.local.v) p *= scale;
+      const Eigen::Vector3d size = bounding_box(shape.local.v).sizes();
+      shape.flat = size.z() <= kFlatMaxThickness * std::max(size.x(), size.y()) * std::sqrt(2.0);
+      shape.source = std::filesystem::path(c.real_meshes[real_index[k]]).filename().string();
+    } else {
+      shape.flat = flat[k];
+      shape.local = to_raw(make_stone_mesh(shape.volume, flat[k], rng));
+    }
+    site.stones.push_back(
+        place_stone(std::move(shape), footprints, site.stones, solids, c, site.terrain, rng));
+    solids.emplace_back(site.stones.back().mesh);
+  }
   return site;
 }
 
@@ -594,6 +718,36 @@ io::Mesh make_stone_mesh(double target_volume, bool flat, std::mt19937_64& rng) 
   const Moments m = volume_moments(s.v, s.t);
   const double scale = std::cbrt(target_volume / m.volume);
   for (auto& p : s.v) p = (p - m.centroid) * scale;
+  return to_mesh(s.v, s.t);
+}
+
+io::Mesh prepare_real_stone_mesh(const io::Mesh& raw, double target_volume) {
+  require(std::isfinite(target_volume) && target_volume > 0,
+          "prepare_real_stone_mesh: target_volume must be positive");
+  RawMesh s = to_raw(raw);
+  if (s.v.size() < 4 || s.t.size() < 4) throw InputError("real stone mesh: fewer than 4 vertices/faces");
+  const double extent = bounding_box(s.v).sizes().maxCoeff();
+  const double unit = extent > kMillimetreThreshold ? 1e-3 : 1.0;  // mm -> m
+  for (auto& p : s.v) p *= unit;
+  Moments m = volume_moments(s.v, s.t);
+  if (m.volume < 0) {  // inward-oriented: flip every triangle
+    for (auto& t : s.t) std::swap(t[1], t[2]);
+    m = volume_moments(s.v, s.t);
+  }
+  const double diameter = extent * unit;
+  if (!(m.volume > 1e-3 * diameter * diameter * diameter)) {
+    throw InputError("real stone mesh: encloses no volume (open or degenerate mesh)");
+  }
+  // Principal axes of the vertex cloud: longest -> x, shortest -> z (rests on its broad side).
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : s.v) cov += (p - m.centroid) * (p - m.centroid).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);  // ascending eigenvalues
+  Eigen::Matrix3d axes;
+  axes.col(0) = eig.eigenvectors().col(2);
+  axes.col(1) = eig.eigenvectors().col(1);
+  axes.col(2) = axes.col(0).cross(axes.col(1));  // right-handed: no mirror image
+  const double scale = std::cbrt(target_volume / m.volume);
+  for (auto& p : s.v) p = axes.transpose() * (p - m.centroid) * scale;
   return to_mesh(s.v, s.t);
 }
 

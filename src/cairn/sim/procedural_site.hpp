@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "cairn/core/io/io.hpp"
@@ -30,6 +31,16 @@ struct TerrainConfig {
   /// [m] gravel roughness at cm scale: smooth value noise with ~10 cm correlation; the lattice
   /// values have this standard deviation.
   double roughness = 0.015;
+
+  template <class V>
+  void visit(V& v) {
+    v("size_x", size_x, "[m] terrain extent along x (centred at the origin)");
+    v("size_y", size_y, "[m] terrain extent along y");
+    v("slope_x", slope_x, "mean slope along x (rise/run)");
+    v("slope_y", slope_y, "mean slope along y");
+    v("bump_amplitude", bump_amplitude, "[m] smooth undulations (3-8 m wavelengths)");
+    v("roughness", roughness, "[m] gravel roughness (10 cm correlation)");
+  }
 };
 
 struct StoneConfig {
@@ -39,6 +50,41 @@ struct StoneConfig {
   double placement_radius = 4.0;  // [m] stone centroids lie within this radius (~50 m^2)
   double flat_fraction = 0.3;     // share of flat (slab-like) stones vs roundish ones
   double embed_depth = 0.03;      // [m] how deep the lowest point sinks below the terrain
+  /// Centre of the placement ellipse [m] and the ratio of its y to its x semi-axis.
+  double center_x = 0.0, center_y = 0.0;
+  double placement_aspect = 1.0;
+  /// Keep-out disc (e.g. the excavator's footprint): no stone footprint reaches into it.
+  double keep_out_x = 0.0, keep_out_y = 0.0, keep_out_radius = 0.0;  // [m]; radius 0 = none
+  /// "spread": stones apart (footprints keep min_spacing), as the paper's experiments need;
+  /// "pile": each stone slid against the ones placed before until they (almost) touch.
+  std::string arrangement = "spread";
+  /// Pile: the largest gap [m] left between a stone and its neighbour (bisection tolerance).
+  double pile_gap = 0.01;
+  /// Real scanned stone meshes (PLY, any unit: mm is detected and converted) used for a share
+  /// of the stones, each scaled to the drawn volume; the rest are procedural rocks.
+  std::vector<std::string> real_meshes;
+  double real_fraction = 0.0;
+
+  template <class V>
+  void visit(V& v) {
+    v("count", count, "number of stones");
+    v("min_volume", min_volume, "[m^3] smallest stone volume (paper: 0.5)");
+    v("max_volume", max_volume, "[m^3] largest stone volume (paper: 1)");
+    v("min_spacing", min_spacing, "[m] gap between footprints (spread)");
+    v("placement_radius", placement_radius, "[m] x semi-axis of the placement ellipse");
+    v("placement_aspect", placement_aspect, "y / x semi-axis ratio of the placement ellipse");
+    v("center_x", center_x, "[m] placement centre x");
+    v("center_y", center_y, "[m] placement centre y");
+    v("flat_fraction", flat_fraction, "share of slab-like procedural stones");
+    v("embed_depth", embed_depth, "[m] how deep the lowest point sinks into the terrain");
+    v("keep_out_x", keep_out_x, "[m] keep-out disc centre x (the machine)");
+    v("keep_out_y", keep_out_y, "[m] keep-out disc centre y");
+    v("keep_out_radius", keep_out_radius, "[m] keep-out disc radius (0 = none)");
+    v("arrangement", arrangement, "spread | pile");
+    v("pile_gap", pile_gap, "[m] largest gap between touching stones (pile)");
+    v("real_meshes", real_meshes, "PLY meshes of real scanned stones");
+    v("real_fraction", real_fraction, "share of stones made from real meshes");
+  }
 };
 
 struct SamplingConfig {
@@ -56,11 +102,30 @@ struct SamplingConfig {
   double ring_height = 3.5;     // [m] above the terrain at the site centre
   double overhead_height = 10.0;  // [m] above the terrain at the site centre
   double visibility_step = 0.03;  // [m] line-of-sight sampling step inside stone bounding boxes
+
+  template <class V>
+  void visit(V& v) {
+    v("spacing", spacing, "[m] point spacing on all surfaces");
+    v("noise_sigma", noise_sigma, "[m] position noise");
+    v("true_normals", true_normals, "also store the true surface normals");
+    v("visibility", visibility, "keep only points visible from the viewpoints");
+    v("ring_viewpoints", ring_viewpoints, "viewpoints on the ring");
+    v("ring_radius", ring_radius, "[m] ring radius around the site centre");
+    v("ring_height", ring_height, "[m] ring height above the terrain");
+    v("overhead_height", overhead_height, "[m] overhead viewpoint height");
+    v("visibility_step", visibility_step, "[m] line-of-sight step inside stone boxes");
+  }
 };
 
 struct SiteConfig {
   TerrainConfig terrain;
   StoneConfig stones;
+
+  template <class V>
+  void visit(V& v) {
+    v("terrain", terrain, "terrain height field");
+    v("stones", stones, "stones and their placement");
+  }
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -100,6 +165,7 @@ struct Stone {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();  // world-frame volume centroid [m]
   double volume = 0.0;         // [m^3] (the mesh volume, equal to the drawn target volume)
   bool flat = false;           // slab-like stone
+  std::string source = "procedural";  // or the file name of the real scanned mesh
   double yaw = 0.0;            // [rad] rotation about the vertical applied to the stone's mesh
   Eigen::AlignedBox3d bounds;  // world-frame bounding box of the mesh
 };
@@ -135,6 +201,14 @@ SampledSite sample_site(const Site& site, const SamplingConfig& config, std::uin
 /// Irregular, rock-like closed mesh of exactly `target_volume` [m^3], centred at its centroid,
 /// its shortest axis roughly along z (flat stones: thickness <= 0.35 of the horizontal extent).
 io::Mesh make_stone_mesh(double target_volume, bool flat, std::mt19937_64& rng);
+
+/// A real scanned stone mesh made ready for a site: units normalised (a mesh larger than
+/// `kMillimetreThreshold` in extent is taken to be in mm), outward orientation, centred at its
+/// volume centroid, principal axes aligned (longest along x, shortest along z so it rests on its
+/// broad side), scaled to `target_volume` [m^3]. Throws InputError for unreadable or open meshes
+/// (zero volume).
+io::Mesh prepare_real_stone_mesh(const io::Mesh& raw, double target_volume);
+inline constexpr double kMillimetreThreshold = 10.0;  // [extent units]
 
 /// Unit sphere approximated by a subdivided icosahedron (20 * 4^subdivisions outward faces).
 io::Mesh make_icosphere(int subdivisions);

@@ -1,0 +1,253 @@
+#pragma once
+// Physics grasp trials (issue #4, item 6): the procedural site in MuJoCo 2.2.2 — stones as rigid
+// bodies (MuJoCo collides the convex hulls of their meshes; mass and inertia come from the closed
+// meshes at rock density), the terrain as a height field sampled from Terrain::height around the
+// stones, and the two-jaw gripper of core/gripper.hpp — and the execution of one grasp:
+// approach, close with the hydraulic force, lift, swing/rotate, place, release, settle.
+//
+// Success is the paper's (Sec. 6.3): "A grasp is deemed successful if it is collision-free, force
+// closure and allows moving the object without dropping it"; slippage while lifting counts as a
+// failure (the paper detects it by the jaws closing further). Failures carry stable reason codes.
+//
+// Stone poses: T_world_stone maps the stone's placement in the given Site (its mesh as stored)
+// to its new placement; identity = unmoved. apply_stone_poses() moves the Site's meshes so the
+// next scan sees the moved world.
+//
+// Everything is deterministic: same inputs, same results (MuJoCo runs single-threaded).
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cairn/core/gripper.hpp"
+#include "cairn/sim/procedural_site.hpp"
+
+namespace cairn::sim {
+
+// ---------------------------------------------------------------------------------------------
+// Configuration
+
+struct PhysicsConfig {
+  // Simulation and materials.
+  double timestep = 0.002;           // [s] MuJoCo time step
+  double rock_density = 2600.0;      // [kg/m^3] granite/limestone boulders
+  double friction = 0.6;             // sliding friction of every contact (rock–rock, rock–steel)
+  double torsional_friction = 0.02;  // [m] torsional friction (resists spinning about a contact)
+  /// [m] rolling friction: stands in for the gravel bed and the concavities the convex hulls
+  /// smooth away, so rounded stones come to rest on slopes instead of rolling on.
+  double rolling_friction = 0.02;
+  /// [s] contact softness (MuJoCo solref time constant, >= 2 * timestep). The jaws press with
+  /// tens of kN on a few hundred kg; softer contacts let them sink cm deep into the stone.
+  double contact_timeconst = 0.005;
+  double contact_impedance = 0.99;  // MuJoCo solimp dmax (dmin = contact_impedance - 0.04)
+  // Terrain height field: only the region around the stones and the gripper's path.
+  double terrain_resolution = 0.1;  // [m] height-field sample spacing
+  double terrain_margin = 1.0;      // [m] around the stones' footprints and the gripper's path
+  double terrain_base = 0.5;        // [m] depth of the height field's solid base below its minimum
+  /// [m] height-field samples under a stone (at its placement in the Site) are lowered to this
+  /// far below its hull's underside: stones embedded in the terrain start in a mould rather than
+  /// overlapping the ground, which MuJoCo would resolve by launching them. < 0: no moulds.
+  double seat_clearance = 0.002;
+  /// [s] at the start, remaining overlaps (the height field is piecewise linear between samples)
+  /// resolve for this long with soft contacts and damped stones, so stones do not jump.
+  double relax_time = 0.2;
+  double relax_timeconst = 0.05;  // [s] contact time constant and damping time while relaxing
+  // Gripper dynamics (geometry and closing force come from GripperConfig).
+  double palm_mass = 1200.0;      // [kg]
+  double jaw_mass = 250.0;        // [kg] each
+  double jaw_speed = 0.3;         // [m/s] free closing speed of a jaw (sets the joint damping)
+  /// Each jaw is split into pads x pads boxes (same outer shape), so a flat contact gives several
+  /// contact points (MuJoCo 2.2.2 reports one point per convex pair) and resists rotation.
+  int jaw_pads = 2;
+  double arm_timeconst = 0.01;    // [s] weld time constant of the arm holding the gripper
+  // Trajectory (min-jerk segments; a segment lasts max(distance/speed, angle/rotation_speed)).
+  double approach_speed = 0.3;  // [m/s] pre-grasp → grasp, and the retreat
+  double lift_speed = 0.3;      // [m/s] lifting and lowering
+  double move_speed = 0.8;      // [m/s] transport (swing) to above the place pose
+  double rotation_speed = 0.5;  // [rad/s] largest rotation rate while moving
+  double min_segment_time = 0.3;  // [s] shortest trajectory segment
+  // Phases.
+  double initial_settle_time = 0.3;  // [s] stones settle onto the height field before the trial
+  double close_time = 2.0;   // [s] longest closing phase (ends earlier when the jaws stop)
+  double hold_time = 0.5;    // [s] hold still after lifting and after moving (slip shows here)
+  double release_time = 1.0;  // [s] opening the jaws at the place pose
+  double settle_time = 3.0;   // [s] longest settling phase at the end
+  double settle_speed = 0.01;  // [m/s] stones whose points move slower than this are at rest
+  double settle_hold = 0.2;    // [s] ... for this long
+  double jaw_stop_speed = 0.005;  // [m/s] closing has ended when both jaws are slower than this
+  // Success criteria.
+  /// A gripper contact is a collision when it is deeper than collision_depth or pushes harder
+  /// than collision_force (stiff contacts stop the soft-welded gripper before it sinks in).
+  double collision_depth = 0.005;  // [m]
+  double collision_force = 2000.0;  // [N]
+  /// Slip while lifting (paper Sec. 6.3): the jaws close further than this (its wire encoder).
+  double jaw_slip_threshold = 0.02;  // [m]
+  /// Slip while moving: stone motion relative to the gripper after it hangs still in the grip
+  /// (end of the hold after lifting; the stone may first swing into place about the jaw axis).
+  double slip_threshold = 0.05;        // [m] centroid displacement relative to the gripper
+  double slip_angle_threshold = 0.17;  // [rad] rotation relative to the gripper (~10 deg)
+  double drop_distance = 0.25;  // [m] relative motion since closing that counts as dropped
+  double place_support_fraction = 0.3;  // lowering stops when the ground carries this share of
+                                        // the stone's weight (or at the place pose)
+  bool abort_on_failure = true;  // on a failure: open the jaws, retract upwards, settle
+
+  template <class V>
+  void visit(V& v) {
+    v("timestep", timestep, "[s] MuJoCo time step");
+    v("rock_density", rock_density, "[kg/m^3] stone density (mass = mesh volume * density)");
+    v("friction", friction, "sliding friction coefficient of all contacts");
+    v("torsional_friction", torsional_friction, "[m] torsional friction of all contacts");
+    v("rolling_friction", rolling_friction, "[m] rolling friction of all contacts");
+    v("contact_timeconst", contact_timeconst, "[s] contact softness (solref time constant)");
+    v("contact_impedance", contact_impedance, "contact solimp dmax (dmin = dmax - 0.04)");
+    v("terrain_resolution", terrain_resolution, "[m] height-field sample spacing");
+    v("terrain_margin", terrain_margin, "[m] height-field margin around stones and gripper path");
+    v("terrain_base", terrain_base, "[m] height-field base depth below its lowest sample");
+    v("seat_clearance", seat_clearance, "[m] moulds carved under the stones' hulls (< 0: none)");
+    v("relax_time", relax_time, "[s] gentle start: soft contacts and damped stones");
+    v("relax_timeconst", relax_timeconst, "[s] contact and damping time constant while relaxing");
+    v("palm_mass", palm_mass, "[kg] gripper palm mass");
+    v("jaw_mass", jaw_mass, "[kg] mass of each jaw");
+    v("jaw_speed", jaw_speed, "[m/s] free closing speed of a jaw");
+    v("jaw_pads", jaw_pads, "each jaw is split into jaw_pads x jaw_pads boxes (contact points)");
+    v("arm_timeconst", arm_timeconst, "[s] stiffness of the arm (weld time constant)");
+    v("approach_speed", approach_speed, "[m/s] approach and retreat speed");
+    v("lift_speed", lift_speed, "[m/s] lifting and lowering speed");
+    v("move_speed", move_speed, "[m/s] transport speed");
+    v("rotation_speed", rotation_speed, "[rad/s] largest rotation rate");
+    v("min_segment_time", min_segment_time, "[s] shortest trajectory segment");
+    v("initial_settle_time", initial_settle_time, "[s] settling before the trial starts");
+    v("close_time", close_time, "[s] longest closing phase");
+    v("hold_time", hold_time, "[s] holding still after lifting and after moving");
+    v("release_time", release_time, "[s] jaw opening time at the place pose");
+    v("settle_time", settle_time, "[s] longest final settling phase");
+    v("settle_speed", settle_speed, "[m/s] rest speed of stones");
+    v("settle_hold", settle_hold, "[s] stones must stay below settle_speed this long");
+    v("jaw_stop_speed", jaw_stop_speed, "[m/s] jaws slower than this have stopped closing");
+    v("collision_depth", collision_depth, "[m] penetration counted as a collision");
+    v("collision_force", collision_force, "[N] gripper contact force counted as a collision");
+    v("jaw_slip_threshold", jaw_slip_threshold, "[m] further jaw closing while lifted = slip");
+    v("slip_threshold", slip_threshold, "[m] largest stone motion relative to the gripper");
+    v("slip_angle_threshold", slip_angle_threshold, "[rad] largest stone rotation rel. to gripper");
+    v("drop_distance", drop_distance, "[m] relative motion that counts as a drop");
+    v("place_support_fraction", place_support_fraction,
+      "share of the weight on the ground that ends lowering");
+    v("abort_on_failure", abort_on_failure, "open, retract and settle as soon as a grasp fails");
+  }
+};
+
+/// Throws ConfigError naming the first invalid field.
+void validate(const PhysicsConfig& config);
+
+// ---------------------------------------------------------------------------------------------
+// Grasp trials
+
+/// One grasp to execute. Poses are gripper frames in the convention of core/gripper.hpp
+/// (x = approach, y = closing, origin at the palm's front face).
+struct GraspPlan {
+  Eigen::Isometry3d T_world_gripper = Eigen::Isometry3d::Identity();  // at closing
+  double opening = 1.0;            // [m] pre-grasp distance between the jaws' inner faces
+  double approach_distance = 0.5;  // [m] the approach starts this far back along -x
+  double lift_height = 1.0;        // [m] lifted straight up (world z) after closing
+  /// Gripper pose at release; the stone follows rigidly, so the expected stone placement is
+  /// T_world_place * T_world_gripper^-1 * (stone at grasp).
+  Eigen::Isometry3d T_world_place = Eigen::Isometry3d::Identity();
+  /// Swing: when set, the transport rotates about the vertical through this point (an
+  /// excavator's cabin axis) instead of moving in a straight line.
+  std::optional<Eigen::Vector2d> swing_pivot;
+  int target_stone = -1;  // when >= 0, grasping another stone is a failure ("wrong_stone")
+};
+
+/// Stable failure reason codes.
+namespace reason {
+inline constexpr const char* kCollisionApproach = "collision_approach";  // gripper hit something
+inline constexpr const char* kCollisionClose = "collision_close";  // a jaw hit terrain closing
+inline constexpr const char* kCollisionTransport = "collision_transport";  // lift/move contacts
+inline constexpr const char* kEmptyGrasp = "empty_grasp";          // nothing between the jaws
+inline constexpr const char* kMultipleStones = "multiple_stones";  // jaws on different stones
+inline constexpr const char* kWrongStone = "wrong_stone";          // not plan.target_stone
+inline constexpr const char* kSlipped = "slipped";  // relative motion beyond the slip threshold
+inline constexpr const char* kDropped = "dropped";  // stone left the jaws while moving
+}  // namespace reason
+
+struct PhaseTiming {
+  std::string name;  // approach, close, lift, move, hold, place, release, retreat, settle, abort
+  double start = 0.0, end = 0.0;  // [s] simulated time
+};
+
+struct GraspTrialResult {
+  bool success = false;
+  std::vector<std::string> failure_reasons;  // codes from `reason`, first occurrence order
+  std::string message;                       // human-readable summary (which part hit what, ...)
+  int grasped_stone = -1;                    // stone held by both jaws after closing
+  double grasp_opening = 0.0;   // [m] jaw distance after closing
+  double slip_distance = 0.0;   // [m] largest stone displacement relative to the gripper while
+                                //     moving (after hanging still in the grip)
+  double slip_angle = 0.0;      // [rad] largest stone rotation relative to the gripper (same)
+  double swing_in = 0.0;        // [m] stone displacement in the grip while lifting (no failure)
+  double jaw_travel = 0.0;      // [m] further jaw closing while lifted (the paper's encoder)
+  double place_error = -1.0;    // [m] final stone centroid vs expected placement (-1: not placed)
+  /// Per stone T_world_stone after settling (identity = at its placement in the given Site).
+  std::vector<Eigen::Isometry3d> stone_poses;
+  bool settled = false;          // all stones at rest at the end
+  std::vector<PhaseTiming> phases;
+  double sim_time = 0.0;   // [s] simulated
+  double wall_time = 0.0;  // [s] elapsed (not deterministic)
+};
+
+/// Runs one grasp trial. Throws ConfigError on invalid configs, InputError on an invalid plan
+/// (non-finite or non-rigid poses, opening outside (0, max_opening], empty site) or when MuJoCo
+/// rejects the generated model.
+GraspTrialResult run_grasp_trial(const Site& site, const GraspPlan& plan,
+                                 const GripperConfig& gripper, const PhysicsConfig& config);
+
+// ---------------------------------------------------------------------------------------------
+// Settling / drop tests
+
+struct SettleResult {
+  std::vector<Eigen::Isometry3d> stone_poses;  // T_world_stone at rest (identity = unmoved)
+  bool settled = false;    // all stones came to rest within settle_time
+  double max_speed = 0.0;  // [m/s] largest point speed of any stone at the end
+  double sim_time = 0.0, wall_time = 0.0;  // [s]
+};
+
+/// Lets the stones fall/settle without the gripper. `start_poses` (empty, or one per stone) are
+/// the initial T_world_stone (e.g. a translation upwards for a drop test). Throws InputError when
+/// start_poses has the wrong size.
+SettleResult settle_stones(const Site& site, const PhysicsConfig& config,
+                           std::span<const Eigen::Isometry3d> start_poses = {});
+
+/// Moves the stones of `site` by their poses (mesh vertices, centroid, bounds, yaw += rotation
+/// about z), so sampling the site afterwards sees the moved world. Throws InputError when the
+/// number of poses differs from the number of stones.
+void apply_stone_poses(Site& site, std::span<const Eigen::Isometry3d> poses);
+
+// ---------------------------------------------------------------------------------------------
+// Grasp helpers
+
+struct CentredGraspOptions {
+  double palm_clearance = 0.05;  // [m] palm face above the stone's top
+  double tip_clearance = 0.05;   // [m] jaw tips above the terrain (or the stone's bottom)
+  double opening_margin = 0.10;  // [m] pre-grasp opening = stone width + 2 * margin (capped)
+  double approach_distance = 0.5;  // [m]
+  double lift_height = 1.0;        // [m]
+  Eigen::Vector2d place_offset = Eigen::Vector2d(2.0, 0.0);  // [m] world xy shift of the place
+  double place_yaw = 0.0;  // [rad] rotation of the place pose about the vertical (the swing)
+  double place_drop = 0.02;  // [m] release this high above the ground contact pose
+};
+
+/// Top-down centred antipodal grasp: approach straight down (x_G = -z), closing along the stone's
+/// shortest horizontal extent through its centroid; palm just above the stone's top, lowered
+/// further only while the jaw tips stay above the terrain (when given; else above the stone's
+/// lowest point). The place pose is the grasp pose shifted by place_offset, rotated by place_yaw
+/// about the vertical through the grasp and raised/lowered with the terrain (when given).
+GraspPlan centred_antipodal_grasp(const Stone& stone, const GripperConfig& gripper,
+                                  const Terrain* terrain = nullptr,
+                                  const CentredGraspOptions& options = {});
+
+/// Shortest horizontal extent of a stone [m] and the unit direction (xy) along which it occurs.
+std::pair<double, Eigen::Vector2d> shortest_horizontal_extent(const Stone& stone);
+
+}  // namespace cairn::sim

@@ -1,0 +1,473 @@
+#include "cairn/sim/physics/scene.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <sstream>
+
+#include "cairn/core/error.hpp"
+
+namespace cairn::sim::detail {
+namespace {
+
+using Eigen::Isometry3d;
+using Eigen::Matrix3d;
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+constexpr double kMinElevationRange = 1e-3;  // [m] MuJoCo needs a positive height-field range
+constexpr double kJawGap = 0.005;            // [m] fully closed jaws stop this far apart
+constexpr int kMaxContacts = 400;            // MuJoCo nconmax
+constexpr int kMaxConstraintRows = 3000;     // MuJoCo njmax (condim 6, pyramidal: 10 per contact)
+constexpr double kImpedanceSpan = 0.04;      // solimp dmin = dmax - span
+
+/// MuJoCo reports fatal errors through this hook; the default prints and calls exit().
+void throw_mujoco_error(const char* msg) { throw InputError(std::string("MuJoCo: ") + msg); }
+void ignore_mujoco_warning(const char*) {}  // warnings are read from mjData::warning instead
+
+struct MassProperties {
+  double volume = 0.0;
+  Vector3d centroid = Vector3d::Zero();
+  Matrix3d inertia_unit_density = Matrix3d::Zero();  // about the centroid, world axes
+};
+
+/// Volume integrals of a closed, outward-oriented mesh (tetrahedra from a reference point).
+MassProperties mass_properties(const io::Mesh& mesh, const Vector3d& reference) {
+  MassProperties mp;
+  Matrix3d second = Matrix3d::Zero();  // ∫ x x^T dV about `reference`
+  Vector3d first = Vector3d::Zero();   // ∫ x dV
+  for (const auto& t : mesh.triangles) {
+    const Vector3d a = mesh.vertices.world(t[0]) - reference;
+    const Vector3d b = mesh.vertices.world(t[1]) - reference;
+    const Vector3d c = mesh.vertices.world(t[2]) - reference;
+    const double v = a.dot(b.cross(c)) / 6.0;
+    mp.volume += v;
+    first += v * (a + b + c) / 4.0;
+    const Vector3d s = a + b + c;
+    second += v / 20.0 * (a * a.transpose() + b * b.transpose() + c * c.transpose() + s * s.transpose());
+  }
+  if (!(mp.volume > 0.0)) throw InputError("physics: stone mesh has no positive volume");
+  const Vector3d offset = first / mp.volume;
+  mp.centroid = reference + offset;
+  const Matrix3d cov = second - mp.volume * offset * offset.transpose();  // about the centroid
+  mp.inertia_unit_density = cov.trace() * Matrix3d::Identity() - cov;
+  return mp;
+}
+
+std::string quat_attr(const Matrix3d& R) {
+  const Eigen::Quaterniond q(R);
+  std::ostringstream s;
+  s.precision(17);
+  s << q.w() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z();
+  return s.str();
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+std::string vec_attr(const Vector3d& v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v.x() << ' ' << v.y() << ' ' << v.z();
+  return s.str();
+}
+
+struct HeightField {
+  double x0 = 0, y0 = 0, spacing = 0.1;
+  int nrow = 2, ncol = 2;  // rows along y, columns along x (MuJoCo: first sample at -x, -y)
+  double zmin = 0, zmax = 0;
+  std::vector<double> z;  // nrow * ncol
+};
+
+HeightField sample_terrain(const Terrain& terrain, const Eigen::AlignedBox2d& region, double res) {
+  HeightField h;
+  h.spacing = res;
+  h.ncol = std::max(2, static_cast<int>(std::ceil(region.sizes().x() / res)) + 1);
+  h.nrow = std::max(2, static_cast<int>(std::ceil(region.sizes().y() / res)) + 1);
+  h.x0 = region.min().x();
+  h.y0 = region.min().y();
+  h.z.resize(static_cast<std::size_t>(h.nrow) * static_cast<std::size_t>(h.ncol));
+  h.zmin = INFINITY;
+  h.zmax = -INFINITY;
+  for (int r = 0; r < h.nrow; ++r) {
+    for (int c = 0; c < h.ncol; ++c) {
+      const double z = terrain.height(h.x0 + c * res, h.y0 + r * res);
+      h.z[static_cast<std::size_t>(r) * static_cast<std::size_t>(h.ncol) + static_cast<std::size_t>(c)] = z;
+      h.zmin = std::min(h.zmin, z);
+      h.zmax = std::max(h.zmax, z);
+    }
+  }
+  return h;
+}
+
+using Triangle = std::array<Vector3d, 3>;
+
+/// Lowers the height-field samples under the given (stone hull) triangles to `clearance` below
+/// the hull's underside: stones embedded in the terrain (StoneConfig::embed_depth) start in a
+/// mould instead of overlapping the ground. Between samples the piecewise-linear surface can
+/// still cut the hull's facet edges slightly (about resolution x slope change); Scene::relax
+/// resolves that gently.
+void carve_seats(HeightField& h, const std::vector<Triangle>& triangles, double clearance) {
+  for (const auto& [a, b, c] : triangles) {
+    const double lo_x = std::min({a.x(), b.x(), c.x()}), hi_x = std::max({a.x(), b.x(), c.x()});
+    const double lo_y = std::min({a.y(), b.y(), c.y()}), hi_y = std::max({a.y(), b.y(), c.y()});
+    const int c0 = std::max(0, static_cast<int>(std::ceil((lo_x - h.x0) / h.spacing)));
+    const int c1 = std::min(h.ncol - 1, static_cast<int>(std::floor((hi_x - h.x0) / h.spacing)));
+    const int r0 = std::max(0, static_cast<int>(std::ceil((lo_y - h.y0) / h.spacing)));
+    const int r1 = std::min(h.nrow - 1, static_cast<int>(std::floor((hi_y - h.y0) / h.spacing)));
+    const double det = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
+    if (std::abs(det) < 1e-12) continue;  // vertical triangle: no underside
+    for (int r = r0; r <= r1; ++r) {
+      for (int col = c0; col <= c1; ++col) {
+        const double x = h.x0 + col * h.spacing, y = h.y0 + r * h.spacing;
+        const double u = ((x - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (y - a.y())) / det;
+        const double w = ((b.x() - a.x()) * (y - a.y()) - (x - a.x()) * (b.y() - a.y())) / det;
+        if (u < 0 || w < 0 || u + w > 1) continue;
+        const double z = a.z() + u * (b.z() - a.z()) + w * (c.z() - a.z());
+        double& hz = h.z[static_cast<std::size_t>(r) * static_cast<std::size_t>(h.ncol) + static_cast<std::size_t>(col)];
+        hz = std::min(hz, z - clearance);
+      }
+    }
+  }
+}
+
+/// Triangles of the convex hull MuJoCo collides for mesh geom `g` of a stone body whose origin
+/// sits at `centroid` with world axes. MuJoCo 2.2.2's mesh graph: numvert, numface,
+/// vert_edgeadr[numvert], vert_globalid[numvert], edge_localid[numvert + 3 numface],
+/// face_globalid[3 numface]. Without a graph (small meshes) the mesh's own faces are used.
+std::vector<Triangle> hull_triangles(const mjModel* m, int g, const Vector3d& centroid) {
+  const int mesh = m->geom_dataid[g];
+  const mjtNum* gq = m->geom_quat + 4 * g;
+  const Matrix3d R = Eigen::Quaterniond(gq[0], gq[1], gq[2], gq[3]).normalized().toRotationMatrix();
+  const Vector3d t = centroid + Vector3d(m->geom_pos[3 * g], m->geom_pos[3 * g + 1], m->geom_pos[3 * g + 2]);
+  const float* vert = m->mesh_vert + 3 * m->mesh_vertadr[mesh];
+  const auto world = [&](int i) {
+    return Vector3d(t + R * Vector3d(vert[3 * i], vert[3 * i + 1], vert[3 * i + 2]));
+  };
+  std::vector<Triangle> out;
+  if (m->mesh_graphadr[mesh] >= 0) {
+    const int* graph = m->mesh_graph + m->mesh_graphadr[mesh];
+    const int nv = graph[0], nf = graph[1];
+    const int* face = graph + 2 + 3 * nv + 3 * nf;
+    for (int f = 0; f < nf; ++f) out.push_back({world(face[3 * f]), world(face[3 * f + 1]), world(face[3 * f + 2])});
+  } else {
+    const int* face = m->mesh_face + 3 * m->mesh_faceadr[mesh];
+    for (int f = 0; f < m->mesh_facenum[mesh]; ++f) {
+      out.push_back({world(face[3 * f]), world(face[3 * f + 1]), world(face[3 * f + 2])});
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string entity_name(int e) {
+  switch (e) {
+    case kTerrain: return "terrain";
+    case kPalm: return "palm";
+    case kJawLeft: return "jaw_left";
+    case kJawRight: return "jaw_right";
+    default: return "stone " + std::to_string(e);
+  }
+}
+
+Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripper,
+             const PhysicsConfig& config) {
+  const std::size_t n = site.stones.size();
+  if (spec.start_poses.size() != n) throw InputError("physics: one start pose per stone needed");
+  mju_user_error = throw_mujoco_error;
+  mju_user_warning = ignore_mujoco_warning;
+
+  // Region of the height field: stones' footprints (at their start poses) and the gripper path.
+  Eigen::AlignedBox2d region;
+  std::vector<MassProperties> props(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const Stone& s = site.stones[k];
+    if (s.mesh.triangles.empty()) throw InputError("physics: stone " + std::to_string(k) + " has no mesh");
+    props[k] = mass_properties(s.mesh, s.centroid);
+    double radius = 0.0;
+    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
+      const Vector3d p = spec.start_poses[k] * s.mesh.vertices.world(i);
+      region.extend(p.head<2>());
+      radius = std::max(radius, (s.mesh.vertices.world(i) - props[k].centroid).norm());
+    }
+    stone_radius_.push_back(radius);
+  }
+  for (const Vector2d& p : spec.extra_xy) region.extend(p);
+  if (region.isEmpty()) region.extend(Vector2d::Zero());
+  region.min().array() -= config.terrain_margin;
+  region.max().array() += config.terrain_margin;
+  HeightField hf = sample_terrain(site.terrain, region, config.terrain_resolution);
+  const bool carve = config.seat_clearance >= 0.0;
+  if (carve) {  // seats reach at most down to the stones' lowest points
+    for (const Stone& s : site.stones) hf.zmin = std::min(hf.zmin, s.bounds.min().z() - config.seat_clearance);
+  }
+  const double half_x = 0.5 * (hf.ncol - 1) * hf.spacing, half_y = 0.5 * (hf.nrow - 1) * hf.spacing;
+  const double range = std::max(hf.zmax - hf.zmin, kMinElevationRange);
+
+  std::ostringstream x;
+  x.precision(17);
+  const std::string friction = num(config.friction) + " " + num(config.torsional_friction) +
+                               " " + num(config.rolling_friction);
+  x << "<mujoco model=\"cairn_site\">\n"
+    << "<compiler angle=\"radian\" inertiafromgeom=\"auto\"/>\n"
+    << "<option timestep=\"" << config.timestep << "\" gravity=\"0 0 -9.81\" cone=\"pyramidal\"/>\n"
+    << "<size nconmax=\"" << kMaxContacts << "\" njmax=\"" << kMaxConstraintRows << "\"/>\n"
+    << "<default><geom condim=\"6\" friction=\"" << friction << "\" solref=\""
+    << config.contact_timeconst << " 1\" solimp=\"" << config.contact_impedance - kImpedanceSpan << ' '
+    << config.contact_impedance << " 0.001\"/></default>\n"
+    << "<asset>\n<hfield name=\"terrain\" nrow=\"" << hf.nrow << "\" ncol=\"" << hf.ncol
+    << "\" size=\"" << half_x << ' ' << half_y << ' ' << range << ' ' << config.terrain_base
+    << "\"/>\n";
+  for (std::size_t k = 0; k < n; ++k) {
+    const Stone& s = site.stones[k];
+    x << "<mesh name=\"stone" << k << "\" vertex=\"";
+    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
+      x << (i ? " " : "") << vec_attr(s.mesh.vertices.world(i) - props[k].centroid);
+    }
+    x << "\"/>\n";
+  }
+  x << "</asset>\n<worldbody>\n"
+    << "<geom name=\"terrain\" type=\"hfield\" hfield=\"terrain\" pos=\""
+    << vec_attr({hf.x0 + half_x, hf.y0 + half_y, hf.zmin}) << "\"/>\n";
+  for (std::size_t k = 0; k < n; ++k) {
+    const Isometry3d& S = spec.start_poses[k];
+    const double mass = config.rock_density * props[k].volume;
+    const Matrix3d I = config.rock_density * props[k].inertia_unit_density;
+    x << "<body name=\"stone" << k << "\" pos=\"" << vec_attr(S * props[k].centroid) << "\" quat=\""
+      << quat_attr(S.linear()) << "\">\n<freejoint/>\n"
+      << "<inertial pos=\"0 0 0\" mass=\"" << mass << "\" fullinertia=\"" << I(0, 0) << ' '
+      << I(1, 1) << ' ' << I(2, 2) << ' ' << I(0, 1) << ' ' << I(0, 2) << ' ' << I(1, 2) << "\"/>\n"
+      << "<geom name=\"stone" << k << "\" type=\"mesh\" mesh=\"stone" << k << "\"/>\n</body>\n";
+    stone_mass_.push_back(mass);
+    centroid_.push_back(props[k].centroid);
+  }
+  if (spec.with_gripper) {
+    const std::vector<ConvexPart> parts = gripper_parts(gripper, spec.opening);
+    const std::string pose = "pos=\"" + vec_attr(spec.T_world_gripper.translation()) +
+                             "\" quat=\"" + quat_attr(spec.T_world_gripper.linear()) + "\"";
+    const auto box = [&](const std::string& name, const Vector3d& center, const Vector3d& half, double mass) {
+      return "<geom name=\"" + name + "\" type=\"box\" pos=\"" + vec_attr(center) + "\" size=\"" +
+             vec_attr(half) + "\" mass=\"" + num(mass) + "\"/>\n";
+    };
+    // A jaw as pads x pads boxes tiling its x-z extent (body frame at the jaw's centre).
+    const auto jaw = [&](const ConvexPart& p) {
+      std::string out;
+      const int n_pad = config.jaw_pads;
+      const Vector3d half(p.half_extents.x() / n_pad, p.half_extents.y(), p.half_extents.z() / n_pad);
+      for (int i = 0; i < n_pad; ++i) {
+        for (int j = 0; j < n_pad; ++j) {
+          const Vector3d c(-p.half_extents.x() + (2 * i + 1) * half.x(), 0.0,
+                           -p.half_extents.z() + (2 * j + 1) * half.z());
+          out += box(p.name + "_" + std::to_string(i) + "_" + std::to_string(j), c, half,
+                     config.jaw_mass / (n_pad * n_pad));
+        }
+      }
+      return out;
+    };
+    const double travel = std::max(0.0, 0.5 * spec.opening - kJawGap);
+    x << "<body name=\"gripper_target\" mocap=\"true\" " << pose << "/>\n"
+      << "<body name=\"gripper\" " << pose << ">\n<freejoint/>\n"
+      << box(parts[0].name, parts[0].center, parts[0].half_extents, config.palm_mass);
+    for (int j = 1; j <= 2; ++j) {
+      const ConvexPart& p = parts[static_cast<std::size_t>(j)];
+      const Vector3d axis(0.0, j == 1 ? 1.0 : -1.0, 0.0);  // closing direction of this jaw
+      x << "<body name=\"" << p.name << "\" pos=\"" << vec_attr(p.center) << "\">\n"
+        << "<joint name=\"" << p.name << "\" type=\"slide\" axis=\"" << vec_attr(axis)
+        << "\" limited=\"true\" range=\"0 " << travel << "\" damping=\""
+        << gripper.closing_force / config.jaw_speed << "\"/>\n"
+        << jaw(p) << "</body>\n";
+    }
+    x << "</body>\n";
+  }
+  x << "</worldbody>\n";
+  if (spec.with_gripper) {
+    x << "<contact><exclude body1=\"jaw_left\" body2=\"jaw_right\"/></contact>\n"
+      << "<equality><weld body1=\"gripper\" body2=\"gripper_target\" solref=\""
+      << config.arm_timeconst << " 1\"/></equality>\n"
+      << "<actuator>\n";
+    for (const char* jaw : {"jaw_left", "jaw_right"}) {
+      x << "<motor name=\"" << jaw << "\" joint=\"" << jaw << "\" gear=\"1\" ctrllimited=\"true\" ctrlrange=\""
+        << -gripper.closing_force << ' ' << gripper.closing_force << "\"/>\n";
+    }
+    x << "</actuator>\n";
+  }
+  x << "</mujoco>\n";
+
+  // Load through a virtual file system (MuJoCo 2.2.2 has no load-from-string).
+  const std::string xml = x.str();
+  auto vfs = std::make_unique<mjVFS>();
+  mj_defaultVFS(vfs.get());
+  if (mj_makeEmptyFileVFS(vfs.get(), "site.xml", static_cast<int>(xml.size())) != 0) {
+    throw InputError("physics: cannot create the in-memory MJCF file");
+  }
+  const int file = mj_findFileVFS(vfs.get(), "site.xml");
+  std::memcpy(vfs->filedata[file], xml.data(), xml.size());
+  std::array<char, 1024> error{};
+  m_ = mj_loadXML("site.xml", vfs.get(), error.data(), static_cast<int>(error.size()));
+  mj_deleteVFS(vfs.get());
+  if (m_ == nullptr) throw InputError(std::string("physics: MuJoCo rejected the model: ") + error.data());
+  d_ = mj_makeData(m_);
+  if (d_ == nullptr) {
+    mj_deleteModel(m_);
+    throw InputError("physics: MuJoCo could not allocate its data");
+  }
+
+  // Seats under the stones' hulls at their placement in the Site, then the height-field samples
+  // normalised to [0, 1] of the elevation range.
+  if (carve) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::string name = "stone" + std::to_string(k);
+      carve_seats(hf, hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), props[k].centroid),
+                  config.seat_clearance);
+    }
+  }
+  const int hid = mj_name2id(m_, mjOBJ_HFIELD, "terrain");
+  for (std::size_t i = 0; i < hf.z.size(); ++i) {
+    m_->hfield_data[static_cast<std::size_t>(m_->hfield_adr[hid]) + i] =
+        static_cast<float>(std::clamp((hf.z[i] - hf.zmin) / range, 0.0, 1.0));
+  }
+  // Entities of the geoms, stone bodies and gripper handles.
+  geom_entity_.assign(static_cast<std::size_t>(m_->ngeom), kTerrain);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::string name = "stone" + std::to_string(k);
+    const int body = mj_name2id(m_, mjOBJ_BODY, name.c_str());
+    stone_body_.push_back(body);
+    stone_qvel_.push_back(m_->jnt_dofadr[m_->body_jntadr[body]]);
+    geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, name.c_str()))] = static_cast<int>(k);
+  }
+  if (spec.with_gripper) {
+    geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, "palm"))] = kPalm;
+    const int jaw_body[2] = {mj_name2id(m_, mjOBJ_BODY, "jaw_left"), mj_name2id(m_, mjOBJ_BODY, "jaw_right")};
+    for (int g = 0; g < m_->ngeom; ++g) {
+      if (m_->geom_bodyid[g] == jaw_body[0]) geom_entity_[static_cast<std::size_t>(g)] = kJawLeft;
+      if (m_->geom_bodyid[g] == jaw_body[1]) geom_entity_[static_cast<std::size_t>(g)] = kJawRight;
+    }
+    gripper_body_ = mj_name2id(m_, mjOBJ_BODY, "gripper");
+    mocap_ = m_->body_mocapid[mj_name2id(m_, mjOBJ_BODY, "gripper_target")];
+    const char* jaws[2] = {"jaw_left", "jaw_right"};
+    for (int j = 0; j < 2; ++j) {
+      const int jid = mj_name2id(m_, mjOBJ_JOINT, jaws[j]);
+      jaw_qpos_[j] = m_->jnt_qposadr[jid];
+      jaw_dof_[j] = m_->jnt_dofadr[jid];
+    }
+    opening0_ = std::clamp(spec.opening, 0.0, gripper.max_opening);
+    closing_force_ = gripper.closing_force;
+  }
+  mj_forward(m_, d_);
+}
+
+void Scene::relax(const PhysicsConfig& c, const std::vector<bool>& damped) {
+  if (c.relax_time <= 0.0) return;
+  // Soft contacts everywhere and viscous damping on the chosen stones (mass-proportional, so
+  // every stone creeps out of overlaps at about the same rate), then the model's own values.
+  std::vector<mjtNum> solref(m_->geom_solref, m_->geom_solref + mjNREF * m_->ngeom);
+  std::vector<mjtNum> damping(m_->dof_damping, m_->dof_damping + m_->nv);
+  for (int g = 0; g < m_->ngeom; ++g) m_->geom_solref[mjNREF * g] = c.relax_timeconst;
+  for (std::size_t k = 0; k < stone_body_.size(); ++k) {
+    if (!damped[k]) continue;
+    const double rate = 1.0 / c.relax_timeconst;
+    const double r2 = stone_radius_[k] * stone_radius_[k];
+    for (int i = 0; i < 6; ++i) {
+      m_->dof_damping[stone_qvel_[k] + i] = stone_mass_[k] * rate * (i < 3 ? 1.0 : r2);
+    }
+  }
+  const double end = d_->time + c.relax_time;
+  while (d_->time < end) mj_step(m_, d_);
+  std::copy(solref.begin(), solref.end(), m_->geom_solref);
+  std::copy(damping.begin(), damping.end(), m_->dof_damping);
+  for (std::size_t k = 0; k < stone_body_.size(); ++k) {
+    if (damped[k]) std::fill_n(d_->qvel + stone_qvel_[k], 6, 0.0);
+  }
+}
+
+Scene::~Scene() {
+  if (d_ != nullptr) mj_deleteData(d_);
+  if (m_ != nullptr) mj_deleteModel(m_);
+}
+
+Isometry3d Scene::stone_body_pose(int k) const {
+  const int b = stone_body_[static_cast<std::size_t>(k)];
+  const mjtNum* q = d_->xquat + 4 * b;
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+  T.translation() = Vector3d(d_->xpos[3 * b], d_->xpos[3 * b + 1], d_->xpos[3 * b + 2]);
+  return T;
+}
+
+Isometry3d Scene::stone_pose(int k) const {
+  // body = T_world_stone * (centroid, identity)  =>  T_world_stone = body * (-centroid)
+  const Isometry3d body = stone_body_pose(k);
+  Isometry3d T = body;
+  T.translation() = body.translation() - body.linear() * centroid_[static_cast<std::size_t>(k)];
+  return T;
+}
+
+double Scene::stone_point_speed(int k) const {
+  const mjtNum* v = d_->qvel + stone_qvel_[static_cast<std::size_t>(k)];
+  const Vector3d lin(v[0], v[1], v[2]), ang(v[3], v[4], v[5]);
+  return lin.norm() + ang.norm() * stone_radius_[static_cast<std::size_t>(k)];
+}
+
+double Scene::max_stone_speed() const {
+  double s = 0.0;
+  for (int k = 0; k < num_stones(); ++k) s = std::max(s, stone_point_speed(k));
+  return s;
+}
+
+Isometry3d Scene::gripper_pose() const {
+  const mjtNum* q = d_->xquat + 4 * gripper_body_;
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized().toRotationMatrix();
+  T.translation() = Vector3d(d_->xpos[3 * gripper_body_], d_->xpos[3 * gripper_body_ + 1],
+                             d_->xpos[3 * gripper_body_ + 2]);
+  return T;
+}
+
+void Scene::set_gripper_target(const Isometry3d& T) {
+  const Eigen::Quaterniond q(T.linear());
+  for (int i = 0; i < 3; ++i) d_->mocap_pos[3 * mocap_ + i] = T.translation()[i];
+  d_->mocap_quat[4 * mocap_ + 0] = q.w();
+  d_->mocap_quat[4 * mocap_ + 1] = q.x();
+  d_->mocap_quat[4 * mocap_ + 2] = q.y();
+  d_->mocap_quat[4 * mocap_ + 3] = q.z();
+}
+
+void Scene::set_jaw_command(double u) {
+  const double f = std::clamp(u, -1.0, 1.0) * closing_force_;
+  d_->ctrl[0] = f;
+  d_->ctrl[1] = f;
+}
+
+double Scene::opening() const { return opening0_ - d_->qpos[jaw_qpos_[0]] - d_->qpos[jaw_qpos_[1]]; }
+
+double Scene::jaw_speed() const {
+  return std::max(std::abs(d_->qvel[jaw_dof_[0]]), std::abs(d_->qvel[jaw_dof_[1]]));
+}
+
+std::vector<Contact> Scene::contacts() const {
+  std::vector<Contact> out;
+  for (int i = 0; i < d_->ncon; ++i) {
+    const mjContact& c = d_->contact[i];
+    int a = geom_entity_[static_cast<std::size_t>(c.geom1)];
+    int b = geom_entity_[static_cast<std::size_t>(c.geom2)];
+    if (a == b) continue;
+    Vector3d normal(c.frame[0], c.frame[1], c.frame[2]);
+    if (a > b) {
+      std::swap(a, b);
+      normal = -normal;
+    }
+    std::array<mjtNum, 6> f{};
+    mj_contactForce(m_, d_, i, f.data());
+    out.push_back({.a = a, .b = b, .depth = -c.dist, .normal_force = f[0], .normal = normal});
+  }
+  return out;
+}
+
+}  // namespace cairn::sim::detail

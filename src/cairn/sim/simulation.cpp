@@ -1,0 +1,337 @@
+#include "cairn/sim/simulation.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cairn/core/config.hpp"
+#include "cairn/core/error.hpp"
+#include "cairn/core/image.hpp"
+#include "cairn/core/io/colmap.hpp"
+#include "cairn/core/io/io.hpp"
+#include "cairn/core/io/run_dir.hpp"
+#include "cairn/core/io/trajectory.hpp"
+#include "cairn/core/log.hpp"
+#include "cairn/sim/world.hpp"
+
+#ifndef CAIRN_DEFAULT_REAL_MESH_DIR
+#define CAIRN_DEFAULT_REAL_MESH_DIR ""
+#endif
+
+namespace cairn::sim {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Scenario geometry [m].
+constexpr double kSiteSize = 30.0;          // terrain extent (the LiDARs see up to ~15 m)
+constexpr double kBaseX = -6.0;             // machine swing axis, facing +x
+constexpr double kKeepOutRadius = 3.0;      // chassis + legs + margin
+constexpr double kDroneExtent = 10.0;
+
+std::vector<std::string> real_mesh_files(const fs::path& dir) {
+  std::vector<std::string> files;
+  if (dir.empty() || !fs::is_directory(dir)) return files;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() == ".ply") files.push_back(e.path().string());
+  }
+  std::sort(files.begin(), files.end());  // directory order is not deterministic
+  return files;
+}
+
+void write_json(const fs::path& file, const nlohmann::json& j) {
+  std::ofstream out(file);
+  if (!out) throw InputError(file.string() + ": cannot write");
+  out << j.dump(2) << "\n";
+  if (!out) throw InputError(file.string() + ": write failed");
+}
+
+nlohmann::json vec_json(const Eigen::Vector3d& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
+
+constexpr std::size_t kPreviewStride = 3;  // every n-th LiDAR return goes into the preview
+constexpr double kPreviewPixelsPerMetre = 30.0;
+constexpr double kPreviewMargin = 4.0;       // [m] around the stones and the machine
+
+Rgb truth_color(std::int32_t label) {
+  static constexpr Rgb kStones[] = {{230, 25, 75},  {60, 180, 75},  {0, 130, 200}, {245, 130, 48}, {145, 30, 180},
+                                    {70, 240, 240}, {240, 50, 230}, {210, 245, 60}, {0, 128, 128}, {170, 110, 40}};
+  if (label == kLabelTerrain) return {165, 155, 140};
+  if (label == kLabelRobot) return {40, 40, 40};
+  if (label < 0) return {200, 200, 200};
+  return kStones[static_cast<std::size_t>(label) % std::size(kStones)];
+}
+
+std::string sweep_file(const std::string& sensor, int index) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06d.ply", index);
+  return "scans/" + sensor + "/" + name;
+}
+
+Similarity read_drone_truth(const fs::path& run) {
+  std::ifstream in(run / "truth" / "drone.json");
+  return Similarity::from_matrix(matrix_from_json(nlohmann::json::parse(in).at("T_map_drone")));
+}
+
+}  // namespace
+
+std::vector<std::string> scenario_names() { return {"exp1", "exp2", "pile"}; }
+
+fs::path default_real_mesh_dir() {
+  const fs::path dir(CAIRN_DEFAULT_REAL_MESH_DIR);
+  return (!dir.empty() && fs::is_directory(dir)) ? dir : fs::path{};
+}
+
+SimulationConfig scenario_config(const std::string& name, const fs::path& real_mesh_dir) {
+  SimulationConfig c;
+  c.site.terrain.size_x = kSiteSize;
+  c.site.terrain.size_y = kSiteSize;
+  c.site.terrain.slope_x = 0.05;
+  c.site.terrain.slope_y = 0.02;
+  c.site.stones.keep_out_x = kBaseX;
+  c.site.stones.keep_out_radius = kKeepOutRadius;
+  c.excavator.base_x = kBaseX;
+  c.drone.extent_x = c.drone.extent_y = kDroneExtent;
+  std::vector<std::string> real = real_mesh_files(real_mesh_dir);
+  double real_fraction = 0.0;
+  if (name == "exp1") {
+    c.site.stones.count = 7;
+    c.site.stones.placement_radius = 4.0;  // ~50 m^2 (Sec. 6.1)
+    real_fraction = 2.0 / 7.0;
+  } else if (name == "exp2") {
+    c.site.stones.count = 7;
+    c.site.stones.center_x = -1.5;
+    c.site.stones.placement_radius = 2.0;
+    c.site.stones.placement_aspect = 3.5;  // a band 4 m deep, 14 m wide
+    c.site.stones.min_spacing = 0.5;
+    c.site.stones.flat_fraction = 0.45;
+    c.excavator.swing_amplitude_deg = 120.0;
+    c.drone.center_x = -1.5;
+    c.drone.extent_x = 6.0;
+    c.drone.extent_y = 16.0;
+    real_fraction = 3.0 / 7.0;
+  } else if (name == "pile") {
+    c.site.stones.count = 6;
+    c.site.stones.arrangement = "pile";
+    c.drone.extent_x = c.drone.extent_y = 8.0;
+    real_fraction = 2.0 / 6.0;
+  } else {
+    std::string known;
+    for (const auto& n : scenario_names()) known.append(known.empty() ? "" : ", ").append(n);
+    throw ConfigError("unknown scenario '" + name + "' (known: " + known + ")");
+  }
+  if (!real.empty()) {
+    c.site.stones.real_meshes = real;
+    c.site.stones.real_fraction = real_fraction;
+  } else if (real_fraction > 0) {
+    spdlog::warn("scenario {}: real stone meshes not found ({}); all stones are procedural", name,
+                 real_mesh_dir.empty() ? std::string("no directory given") : real_mesh_dir.string());
+  }
+  return c;
+}
+
+SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed) {
+  Site site = generate_site(config.site, seed);
+  Excavator excavator(config.excavator, config.gripper, site.terrain);
+  RayScene scene = make_world_scene(site, config.terrain_mesh_spacing);
+  return SimulatedWorld{std::move(site), std::move(excavator), std::move(scene)};
+}
+
+std::vector<SweepSchedule> sweep_schedule(const LidarConfig& lidar, double duration, std::uint64_t seed) {
+  const double period = 1.0 / lidar.rate;
+  std::vector<SweepSchedule> all;
+  for (const std::string sensor : {"H", "V"}) {
+    SplitMix64 rng(mix_seed(seed, name_hash("sweep_phase"), name_hash(sensor)));
+    const double phase = period * rng.uniform01();
+    for (int k = 0;; ++k) {
+      const double t = phase + k * period;
+      if (t + period > duration) break;
+      all.push_back({sensor, k, t});
+    }
+  }
+  std::stable_sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.t_start < b.t_start; });
+  return all;
+}
+
+Sweep simulate_scheduled_sweep(const SimulatedWorld& world, const LidarConfig& lidar, const SweepSchedule& s,
+                               std::uint64_t seed) {
+  const Excavator& ex = world.excavator;
+  const Eigen::Isometry3d T_cabin_sensor = s.sensor == "H" ? ex.T_cabin_H() : ex.T_cabin_V();
+  LidarMotion motion;
+  motion.T_world_sensor = [&ex, T_cabin_sensor](double t) { return ex.T_world_cabin(t) * T_cabin_sensor; };
+  motion.robot = &ex.model();
+  motion.link_poses = [&ex](double t) { return ex.link_poses(t); };
+  return simulate_sweep(world.scene, motion, lidar, s.sensor, s.index, s.t_start, seed);
+}
+
+SimulationSummary simulate_run(const std::string& scenario, const SimulationConfig& config, std::uint64_t seed,
+                               double duration, const fs::path& out, bool overwrite, const Progress& progress) {
+  if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("simulate: duration must be positive");
+  if (fs::exists(out) && !fs::is_directory(out)) throw InputError(out.string() + ": exists and is not a directory");
+  if (fs::exists(out) && !fs::is_empty(out) && !overwrite) {
+    throw InputError(out.string() + ": directory is not empty (use --overwrite to replace it)");
+  }
+  if (fs::exists(out) && overwrite) {
+    // Only ever delete what a previous simulation wrote.
+    if (!fs::exists(out / "run.json")) throw InputError(out.string() + ": not a run directory; refusing to overwrite it");
+    fs::remove_all(out);
+  }
+  Stopwatch total, sw;
+  SimulationSummary summary{.scenario = scenario, .seed = seed, .duration = duration};
+  const SimulatedWorld world = make_world(config, seed);
+  const Excavator& ex = world.excavator;
+  for (const auto* dir : {"scans/H", "scans/V", "state", "drone/sparse", "truth/scans/H", "truth/scans/V", "truth/stones"}) {
+    fs::create_directories(out / dir);
+  }
+  const StateEstimate state = simulate_state_estimation(
+      [&ex](double t) { return ex.T_world_cabin(t); }, [&ex](double t) { return ex.joints_at(t); }, ex.model(), 0.0,
+      duration, config.state, seed);
+  summary.seconds_site = sw.lap_ms() / 1000.0;
+
+  // Sweeps, written as they come.
+  std::vector<io::ScanInfo> index;
+  PointCloud preview;  // a share of the returns in the world frame (true poses), for the picture
+  std::vector<Rgb> preview_colors;
+  const auto schedule = sweep_schedule(config.lidar, duration, seed);
+  double lidar_ms = 0, write_ms = 0;
+  for (std::size_t i = 0; i < schedule.size(); ++i) {
+    Stopwatch one;
+    const Sweep sweep = simulate_scheduled_sweep(world, config.lidar, schedule[i], seed);
+    lidar_ms += one.lap_ms();
+    PointCloud cloud;
+    cloud.points = sweep.points;
+    cloud.times = sweep.times;
+    ScalarField ring{.name = "ring", .values = {}};
+    ring.values.reserve(sweep.rings.size());
+    for (auto r : sweep.rings) ring.values.push_back(static_cast<float>(r));
+    cloud.fields.push_back(std::move(ring));
+    const std::string file = sweep_file(sweep.sensor, sweep.index);
+    io::write_ply(out / file, cloud);
+    if (config.with_scan_truth) {
+      fs::path truth = out / "truth" / file;
+      truth.replace_extension(".npy");
+      io::write_npy_int32(truth, sweep.truth);
+    }
+    index.push_back({sweep.sensor, sweep.index, sweep.t_start, sweep.t_end, sweep.points.size(), file});
+    const Eigen::Isometry3d T_cabin_sensor = sweep.sensor == "H" ? ex.T_cabin_H() : ex.T_cabin_V();
+    for (std::size_t p = 0; p < sweep.points.size(); p += kPreviewStride) {
+      const Eigen::Isometry3d T = ex.T_world_cabin(sweep.times[p]) * T_cabin_sensor;
+      preview.points.push_back((T * sweep.points[p].cast<double>()).cast<float>());
+      preview_colors.push_back(truth_color(sweep.truth[p]));
+    }
+    summary.points += sweep.points.size();
+    summary.rays += sweep.num_rays;
+    write_ms += one.lap_ms();
+    if (progress) progress("lidar", i + 1, schedule.size());
+  }
+  summary.sweeps = schedule.size();
+  summary.seconds_lidar = lidar_ms / 1000.0;
+  io::write_scan_index(out / "scans" / "index.csv", index);
+  sw.lap_ms();
+
+  // State estimates, robot, extrinsics.
+  io::write_stamped_poses(out / "state" / "cabin_poses.tum", state.estimate);
+  io::write_joint_states(out / "state" / "joint_states.csv", state.joints);
+  io::write_stamped_poses(out / "truth" / "cabin_poses.tum", state.truth);
+  io::write_joint_states(out / "truth" / "joint_states.csv", state.joints_truth);
+  write_json(out / "robot.json", to_json(ex.model()));
+  const Eigen::Isometry3d T_H_V = ex.T_cabin_H().inverse() * ex.T_cabin_V();
+  write_json(out / "extrinsics.json",
+             {{"T_cabin_sensor", {{"H", matrix_to_json(ex.T_cabin_H().matrix())}, {"V", matrix_to_json(ex.T_cabin_V().matrix())}}},
+              {"T_H_V", matrix_to_json(T_H_V.matrix())},
+              {"note", "T_a_b maps points of frame b into frame a; sensors spin about their z axis"}});
+
+  // Ground truth of the site.
+  nlohmann::json stones = nlohmann::json::array();
+  for (std::size_t k = 0; k < world.site.stones.size(); ++k) {
+    const Stone& s = world.site.stones[k];
+    char name[64];
+    std::snprintf(name, sizeof(name), "stones/stone_%02zu.ply", k);
+    io::write_ply_mesh(out / "truth" / name, s.mesh);
+    stones.push_back({{"id", k}, {"volume", s.volume}, {"flat", s.flat}, {"source", s.source},
+                      {"centroid", vec_json(s.centroid)}, {"bbox_min", vec_json(s.bounds.min())},
+                      {"bbox_max", vec_json(s.bounds.max())}, {"mesh", name},
+                      {"T_world_stone", matrix_to_json(Eigen::Matrix4d::Identity())}});
+  }
+  io::write_ply_mesh(out / "truth" / "terrain.ply", terrain_mesh(world.site.terrain, config.terrain_mesh_spacing));
+  write_json(out / "truth" / "site.json",
+             {{"stones", stones},
+              {"T_world_base", matrix_to_json(ex.T_world_base(0.0).matrix())},
+              {"labels", {{"terrain", kLabelTerrain}, {"robot", kLabelRobot}, {"stone", "index k >= 0"}}},
+              {"note", "stone meshes are in the world (= map) frame; T_world_stone moves them from there"}});
+  if (config.with_snapshot) {
+    const SampledSite snap = sample_site(world.site, config.snapshot, seed);
+    io::write_ply(out / "truth" / "map_snapshot.ply", snap.cloud);
+  }
+  summary.seconds_write = (write_ms + sw.lap_ms()) / 1000.0;
+
+  // Drone survey (Sec. 4.1).
+  if (config.with_drone) {
+    if (progress) progress("drone", 0, 1);
+    const DroneSurvey survey = simulate_drone(world.site, world.scene, config.drone, seed);
+    PointCloud cloud = survey.cloud;
+    cloud.labels.clear();  // the truth goes to truth/, not into the input
+    io::write_ply(out / "drone" / "cloud.ply", cloud);
+    io::write_npy_int32(out / "truth" / "drone_labels.npy", survey.truth);
+    io::write_colmap_text(out / "drone" / "sparse", to_colmap_model(survey));
+    const auto vins = vins_trajectory(survey);
+    io::write_tum_trajectory(out / "drone" / "vins_trajectory.tum", vins);
+    nlohmann::json images = nlohmann::json::array();
+    for (const auto& im : survey.images) {
+      images.push_back({{"name", im.name}, {"timestamp", im.timestamp}, {"T_world_cam", matrix_to_json(im.T_world_cam.matrix())}});
+    }
+    write_json(out / "truth" / "drone.json",
+               {{"T_map_drone", matrix_to_json(survey.T_world_sfm.matrix())},
+                {"scale_map_per_sfm_unit", survey.T_world_sfm.scale},
+                {"T_sfm_world", matrix_to_json(survey.T_sfm_world.matrix())},
+                {"T_vins_world", matrix_to_json(survey.T_vins_world.matrix())},
+                {"images", images}});
+    summary.drone_points = survey.cloud.size();
+    summary.drone_images = survey.images.size();
+    summary.seconds_drone = sw.lap_ms() / 1000.0;
+    if (progress) progress("drone", 1, 1);
+  }
+
+  // Preview: LiDAR returns (left, coloured by truth) and the drone cloud (right, mapped into the
+  // world by the true similarity), over the same extent.
+  {
+    Eigen::AlignedBox3d region;
+    for (const auto& stone : world.site.stones) region.extend(stone.bounds);
+    region.extend(ex.T_world_base(0.0).translation());
+    Aabb box;
+    box.min = (region.min() - Eigen::Vector3d::Constant(kPreviewMargin)).cast<float>();
+    box.max = (region.max() + Eigen::Vector3d::Constant(kPreviewMargin)).cast<float>();
+    box.min.z() = static_cast<float>(region.min().z() - 1.0);
+    box.max.z() = static_cast<float>(region.max().z() + 1.0);
+    Image left = render_top_view(preview, preview_colors, kPreviewPixelsPerMetre, box);
+    if (config.with_drone) {
+      PointCloud drone = io::read_cloud(out / "drone" / "cloud.ply").cloud;
+      transform_cloud(drone, read_drone_truth(out));
+      std::vector<Rgb> colors = drone.has_colors() ? drone.colors : std::vector<Rgb>(drone.size(), Rgb{120, 120, 120});
+      left = side_by_side(left, render_top_view(drone, colors, kPreviewPixelsPerMetre, box));
+    }
+    write_png(out / "preview.png", left);
+  }
+
+  nlohmann::json meta{{"format_version", io::kRunFormatVersion},
+                      {"created_by", "cairn simulate"},
+                      {"scenario", scenario},
+                      {"seed", seed},
+                      {"duration", duration},
+                      {"frames", {{"world", "map frame M: gravity-aligned, z up, metres"},
+                                  {"cabin", "x forward, z up, origin on the swing axis"},
+                                  {"H", "horizontal VLP-16, spin axis = cabin z"},
+                                  {"V", "vertical VLP-16, spin axis = cabin y"}}},
+                      {"sensors", {{"H", {{"model", "VLP-16"}, {"rate_hz", config.lidar.rate}}},
+                                   {"V", {{"model", "VLP-16"}, {"rate_hz", config.lidar.rate}}}}},
+                      {"counts", {{"sweeps", summary.sweeps}, {"points", summary.points}, {"rays", summary.rays},
+                                  {"drone_points", summary.drone_points}, {"drone_images", summary.drone_images}}},
+                      {"config", config::to_json(config)}};
+  write_json(out / "run.json", meta);
+  summary.seconds_total = total.elapsed_ms() / 1000.0;
+  return summary;
+}
+
+}  // namespace cairn::sim

@@ -1,0 +1,105 @@
+#pragma once
+// `cairn simulate`: one scenario (site + excavator + sensors + drone) simulated over a duration and
+// written as a run directory (core/io/run_dir.hpp, docs/run-directory.md).
+//
+// Scenarios (paper Sec. 6.1 and beyond):
+//   exp1  seven stones of 0.5–1 m³ spread over ~50 m² in front of the machine (as Sec. 6.1);
+//         two of them are real scanned stones (epfl-stone-models) scaled to the drawn volume.
+//   exp2  a different arrangement: seven stones in a wide band across the machine's front, so the
+//         cabin must swing to see them all; more flat stones, three real meshes.
+//   pile  six stones touching each other in one heap (for later segmentation work).
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "cairn/core/gripper.hpp"
+#include "cairn/sim/drone.hpp"
+#include "cairn/sim/excavator.hpp"
+#include "cairn/sim/lidar.hpp"
+#include "cairn/sim/procedural_site.hpp"
+#include "cairn/sim/state_estimation.hpp"
+
+namespace cairn::sim {
+
+struct SimulationConfig {
+  SiteConfig site;
+  ExcavatorConfig excavator;
+  GripperConfig gripper;
+  LidarConfig lidar;
+  StateEstimationConfig state;
+  DroneConfig drone;
+  SamplingConfig snapshot;           // the dense ground-truth map snapshot
+  double terrain_mesh_spacing = 0.05;  // [m] triangulation of the terrain for ray casting
+  bool with_drone = true;             // fly the drone survey
+  bool with_snapshot = true;          // write truth/map_snapshot.ply
+  bool with_scan_truth = true;        // write per-point true labels of every sweep
+
+  template <class V>
+  void visit(V& v) {
+    v("site", site, "terrain and stones");
+    v("excavator", excavator, "machine placement, cabin swing, arm pose, LiDAR mounts");
+    v("gripper", gripper, "two-jaw gripper geometry (shared with grasp planning)");
+    v("lidar", lidar, "VLP-16 model (both sensors)");
+    v("state", state, "state-estimation error model");
+    v("drone", drone, "drone photogrammetry survey (Sec. 4.1)");
+    v("snapshot", snapshot, "dense labelled ground-truth map snapshot");
+    v("terrain_mesh_spacing", terrain_mesh_spacing, "[m] terrain triangulation for ray casting");
+    v("with_drone", with_drone, "fly the drone survey");
+    v("with_snapshot", with_snapshot, "write the dense ground-truth map snapshot");
+    v("with_scan_truth", with_scan_truth, "write the true label of every scan point");
+  }
+};
+
+/// Names of the built-in scenarios.
+std::vector<std::string> scenario_names();
+/// The configuration of a scenario; throws ConfigError listing the known names otherwise.
+/// `real_mesh_dir` holds the real scanned stones (epfl-stone-models); when empty or missing, the
+/// scenario's real stones are procedural instead (a warning says so).
+SimulationConfig scenario_config(const std::string& name, const std::filesystem::path& real_mesh_dir);
+
+/// Directory of the real stone meshes next to the checkout (compile-time default), if present.
+std::filesystem::path default_real_mesh_dir();
+
+struct SimulationSummary {
+  std::string scenario;
+  std::uint64_t seed = 0;
+  double duration = 0.0;
+  std::size_t sweeps = 0, points = 0, rays = 0;
+  std::size_t drone_points = 0, drone_images = 0;
+  double seconds_site = 0, seconds_lidar = 0, seconds_drone = 0, seconds_write = 0, seconds_total = 0;
+};
+
+/// Progress callback: (stage, done, total).
+using Progress = std::function<void(const std::string&, std::size_t, std::size_t)>;
+
+/// Simulates `duration` seconds of the scenario and writes the run directory `out` (created; an
+/// existing non-empty directory is an InputError unless `overwrite`). Deterministic for a seed:
+/// the same inputs give identical files.
+SimulationSummary simulate_run(const std::string& scenario, const SimulationConfig& config, std::uint64_t seed,
+                               double duration, const std::filesystem::path& out, bool overwrite = false,
+                               const Progress& progress = {});
+
+/// Everything the simulator knows at time zero, for tests and other stages (no files).
+struct SimulatedWorld {
+  Site site;
+  Excavator excavator;
+  RayScene scene;
+};
+SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed);
+
+/// The sweeps of both sensors in [0, duration): H starts at a random phase, V at another one (the
+/// sensors are not synchronised). Returned in order of start time.
+struct SweepSchedule {
+  std::string sensor;
+  int index;
+  double t_start;
+};
+std::vector<SweepSchedule> sweep_schedule(const LidarConfig& lidar, double duration, std::uint64_t seed);
+
+/// Simulates one scheduled sweep of the world.
+Sweep simulate_scheduled_sweep(const SimulatedWorld& world, const LidarConfig& lidar, const SweepSchedule& s,
+                               std::uint64_t seed);
+
+}  // namespace cairn::sim

@@ -1,0 +1,247 @@
+// Physics grasp trials in MuJoCo: centred grasps succeed, grasps on air and into the terrain fail
+// with the right reasons, dropped stones come to rest, results are deterministic.
+#include "cairn/sim/physics/physics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "cairn/core/error.hpp"
+#include "cairn/sim/physics/grasp_json.hpp"
+
+namespace cairn::sim {
+namespace {
+
+using Eigen::Isometry3d;
+using Eigen::Vector3d;
+
+bool has_reason(const GraspTrialResult& r, const std::string& code) {
+  return std::find(r.failure_reasons.begin(), r.failure_reasons.end(), code) != r.failure_reasons.end();
+}
+
+/// Closed, outward-oriented box mesh between lo and hi (world frame).
+io::Mesh box_mesh(const Vector3d& lo, const Vector3d& hi) {
+  io::Mesh mesh;
+  for (int i = 0; i < 8; ++i) {
+    const Vector3d corner((i & 1) ? hi.x() : lo.x(), (i & 2) ? hi.y() : lo.y(), (i & 4) ? hi.z() : lo.z());
+    mesh.vertices.points.push_back(corner.cast<float>());
+  }
+  mesh.triangles = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                    {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  return mesh;
+}
+
+Stone box_stone(const Vector3d& lo, const Vector3d& hi) {
+  Stone s;
+  s.mesh = box_mesh(lo, hi);
+  s.volume = mesh_volume(s.mesh);
+  s.centroid = mesh_centroid(s.mesh);
+  s.bounds = Eigen::AlignedBox3d(lo, hi);
+  return s;
+}
+
+/// Flat terrain at z = 0 with one box-like stone (0.8 x 0.5 x 0.5 m, 520 kg) resting on it.
+Site flat_box_site() {
+  Site site;
+  site.terrain.config = TerrainConfig{.slope_x = 0.0, .slope_y = 0.0, .bump_amplitude = 0.0, .roughness = 0.0};
+  site.stones.push_back(box_stone({-0.4, -0.25, 0.0}, {0.4, 0.25, 0.5}));
+  return site;
+}
+
+/// Coarser settings that keep each trial to about a second of wall time.
+PhysicsConfig fast_config() {
+  PhysicsConfig c;
+  c.timestep = 0.004;
+  c.contact_timeconst = 0.008;  // >= 2 * timestep
+  c.terrain_resolution = 0.2;
+  c.settle_time = 2.0;
+  return c;
+}
+
+TEST(GraspTrial, CentredAntipodalGraspOnBoxSucceedsAndPlaces) {
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  CentredGraspOptions o;
+  o.place_offset = {1.5, 0.5};
+  o.place_yaw = 0.4;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.target_stone = 0;
+  // The shortest horizontal extent of the box is along y.
+  EXPECT_NEAR(std::abs(plan.T_world_gripper.linear().col(1).y()), 1.0, 1e-9);
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_TRUE(r.success) << r.message;
+  EXPECT_TRUE(r.failure_reasons.empty());
+  EXPECT_EQ(r.grasped_stone, 0);
+  EXPECT_NEAR(r.grasp_opening, 0.5, 0.03);
+  EXPECT_LT(r.slip_distance, 0.05);
+  EXPECT_TRUE(r.settled);
+  ASSERT_EQ(r.stone_poses.size(), 1u);
+  // The stone ends near the place pose: shifted by the offset, turned by the yaw.
+  const Vector3d c = site.stones[0].centroid;
+  const Vector3d moved = r.stone_poses[0] * c;
+  EXPECT_NEAR(moved.x(), c.x() + 1.5, 0.1);
+  EXPECT_NEAR(moved.y(), c.y() + 0.5, 0.1);
+  EXPECT_NEAR(moved.z(), c.z(), 0.05);  // resting on the flat ground again
+  EXPECT_NEAR(Eigen::AngleAxisd(r.stone_poses[0].linear()).angle(), 0.4, 0.1);
+  EXPECT_GE(r.place_error, 0.0);
+  EXPECT_LT(r.place_error, 0.1);
+}
+
+TEST(GraspTrial, SwingAboutAPivotSucceeds) {
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  CentredGraspOptions o;
+  o.place_offset = {-2.0, 2.0};  // a quarter turn about (-2, 0)
+  o.place_yaw = std::numbers::pi / 2;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.swing_pivot = Eigen::Vector2d(-2.0, 0.0);
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_TRUE(r.success) << r.message;
+  EXPECT_NEAR((r.stone_poses[0] * site.stones[0].centroid - Vector3d(-2.0, 2.0, 0.25)).head<2>().norm(), 0.0, 0.1);
+}
+
+TEST(GraspTrial, GraspOnAirFailsAsEmpty) {
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
+  plan.T_world_gripper.translation().x() += 3.0;  // nothing there
+  plan.T_world_place.translation().x() += 3.0;
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_FALSE(r.success);
+  ASSERT_EQ(r.failure_reasons.size(), 1u) << r.message;
+  EXPECT_EQ(r.failure_reasons[0], reason::kEmptyGrasp);
+  EXPECT_NE(r.message.find("nothing between the jaws"), std::string::npos) << r.message;
+  EXPECT_EQ(r.grasped_stone, -1);
+  EXPECT_LT(r.grasp_opening, 0.05);  // the jaws closed fully
+  EXPECT_LT(r.stone_poses[0].translation().norm(), 0.01);  // the stone was not touched
+}
+
+TEST(GraspTrial, JawHittingTheTerrainOnApproachIsACollision) {
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
+  // Palm 0.1 m above the box top: the jaw tips end 0.2 m below the ground.
+  plan.T_world_gripper.translation().z() = 0.6;
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(has_reason(r, reason::kCollisionApproach)) << r.message;
+  EXPECT_NE(r.message.find("jaw_"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("hit terrain"), std::string::npos) << r.message;
+  EXPECT_EQ(r.grasped_stone, -1);
+}
+
+TEST(GraspTrial, PalmHittingTheStoneOnApproachIsACollision) {
+  Site site = flat_box_site();
+  site.stones[0] = box_stone({-0.3, -0.25, 0.0}, {0.3, 0.25, 1.0});  // tall: the jaws stay clear
+  const GripperConfig gripper;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
+  plan.T_world_gripper.translation().z() = 0.95;  // palm 5 cm into the box top
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_TRUE(has_reason(r, reason::kCollisionApproach)) << r.message;
+  EXPECT_NE(r.message.find("palm hit stone 0"), std::string::npos) << r.message;
+}
+
+TEST(GraspTrial, IsDeterministic) {
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  const GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
+  const GraspTrialResult a = run_grasp_trial(site, plan, gripper, fast_config());
+  const GraspTrialResult b = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_EQ(a.success, b.success);
+  EXPECT_EQ(a.failure_reasons, b.failure_reasons);
+  EXPECT_EQ(a.slip_distance, b.slip_distance);
+  EXPECT_EQ(a.sim_time, b.sim_time);
+  ASSERT_EQ(a.stone_poses.size(), b.stone_poses.size());
+  EXPECT_TRUE(a.stone_poses[0].matrix() == b.stone_poses[0].matrix());
+}
+
+TEST(GraspTrial, RejectsInvalidInput) {
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
+  GraspPlan wide = plan;
+  wide.opening = gripper.max_opening + 0.1;
+  EXPECT_THROW(run_grasp_trial(site, wide, gripper, fast_config()), InputError);
+  GraspPlan skew = plan;
+  skew.T_world_gripper.linear()(0, 0) += 0.1;
+  EXPECT_THROW(run_grasp_trial(site, skew, gripper, fast_config()), InputError);
+  GraspPlan wrong = plan;
+  wrong.target_stone = 5;
+  EXPECT_THROW(run_grasp_trial(site, wrong, gripper, fast_config()), InputError);
+  PhysicsConfig bad = fast_config();
+  bad.timestep = 0.0;
+  EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError);
+}
+
+TEST(Settle, DroppedStoneComesToRestOnTheTerrain) {
+  // Gravel terrain with a gentle slope and a flat rock (0.4 m^3, ~1 t) dropped from 0.5 m.
+  std::mt19937_64 rng(42);
+  Site site;
+  site.terrain = Terrain::random(TerrainConfig{.slope_x = 0.03, .slope_y = 0.0, .bump_amplitude = 0.05}, rng);
+  Stone s;
+  s.mesh = make_stone_mesh(0.4, true, rng);
+  double gap0 = INFINITY;  // lift the rock so its lowest point touches the ground
+  for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
+    const Vector3d p = s.mesh.vertices.world(i);
+    gap0 = std::min(gap0, p.z() - site.terrain.height(p.x(), p.y()));
+  }
+  for (auto& p : s.mesh.vertices.points) p.z() -= static_cast<float>(gap0);
+  s.volume = mesh_volume(s.mesh);
+  s.centroid = mesh_centroid(s.mesh);
+  for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) s.bounds.extend(s.mesh.vertices.world(i));
+  site.stones.push_back(s);
+
+  PhysicsConfig c = fast_config();
+  c.settle_time = 5.0;
+  Isometry3d start = Isometry3d::Identity();
+  start.translation() = Vector3d(0.0, 0.0, 0.5);  // dropped from 0.5 m
+  const SettleResult r = settle_stones(site, c, std::span(&start, 1));
+  EXPECT_TRUE(r.settled);
+  EXPECT_LT(r.max_speed, c.settle_speed);
+  EXPECT_LT(r.sim_time, c.settle_time + c.relax_time);
+  // Resting on the terrain surface: the lowest point of the moved mesh is within a few cm of
+  // the ground (the height field is sampled every 0.2 m here), and it fell, not floated.
+  apply_stone_poses(site, r.stone_poses);
+  double gap = INFINITY;
+  for (std::size_t i = 0; i < site.stones[0].mesh.vertices.size(); ++i) {
+    const Vector3d p = site.stones[0].mesh.vertices.world(i);
+    gap = std::min(gap, p.z() - site.terrain.height(p.x(), p.y()));
+  }
+  EXPECT_NEAR(gap, 0.0, 0.04);
+  EXPECT_LT(r.stone_poses[0].translation().norm(), 0.5);  // landed near where it was dropped
+}
+
+TEST(Settle, ApplyStonePosesMovesMeshCentroidAndBounds) {
+  Site site = flat_box_site();
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.5, Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Vector3d(1.0, 2.0, 0.0);
+  const Vector3d c0 = site.stones[0].centroid;
+  apply_stone_poses(site, std::span(&T, 1));
+  EXPECT_TRUE(site.stones[0].centroid.isApprox(T * c0));
+  EXPECT_NEAR(site.stones[0].yaw, 0.5, 1e-12);
+  EXPECT_NEAR(mesh_centroid(site.stones[0].mesh).x(), (T * c0).x(), 1e-5);
+  EXPECT_TRUE(site.stones[0].bounds.contains(T * c0));
+  EXPECT_THROW(apply_stone_poses(site, {}), InputError);
+}
+
+TEST(GraspJson, PlanRoundTrips) {
+  const Site site = flat_box_site();
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], GripperConfig{}, &site.terrain);
+  plan.swing_pivot = Eigen::Vector2d(1.0, -2.0);
+  plan.target_stone = 0;
+  const GraspPlan back = grasp_plan_from_json(to_json(plan), "test");
+  EXPECT_TRUE(back.T_world_gripper.isApprox(plan.T_world_gripper, 1e-8));
+  EXPECT_TRUE(back.T_world_place.isApprox(plan.T_world_place, 1e-8));
+  EXPECT_DOUBLE_EQ(back.opening, plan.opening);
+  ASSERT_TRUE(back.swing_pivot.has_value());
+  EXPECT_EQ(back.target_stone, 0);
+  const nlohmann::json quat = {{"T_world_gripper", {{"position", {1, 2, 3}}, {"quaternion_wxyz", {0, 1, 0, 0}}}}};
+  EXPECT_TRUE(grasp_plan_from_json(quat, "q").T_world_gripper.translation().isApprox(Vector3d(1, 2, 3)));
+  EXPECT_THROW(grasp_plan_from_json(nlohmann::json{{"opening", 1.0}}, "x"), InputError);
+  EXPECT_THROW(grasp_plan_from_json(nlohmann::json{{"T_world_gripper", 1}, {"bogus", 2}}, "x"), InputError);
+}
+
+}  // namespace
+}  // namespace cairn::sim

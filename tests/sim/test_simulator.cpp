@@ -1,0 +1,566 @@
+// Simulator: Embree ray casting, VLP-16 model, excavator, state estimation, scenarios, run directory.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <set>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/io/colmap.hpp"
+#include "cairn/core/io/io.hpp"
+#include "cairn/core/io/run_dir.hpp"
+#include "cairn/sim/simulation.hpp"
+#include "cairn/sim/world.hpp"
+#include "support/mesh_distance.hpp"
+#include "support/test_data.hpp"
+
+namespace cairn::sim {
+namespace {
+
+namespace fs = std::filesystem;
+using Eigen::Vector3d;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+io::Mesh quad(double half, double z) {
+  io::Mesh m;
+  m.vertices.points = {{float(-half), float(-half), float(z)}, {float(half), float(-half), float(z)},
+                       {float(half), float(half), float(z)}, {float(-half), float(half), float(z)}};
+  m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+io::Mesh box_mesh(const Vector3d& lo, const Vector3d& hi) {
+  io::Mesh m;
+  for (int i = 0; i < 8; ++i) {
+    m.vertices.points.emplace_back(float((i & 1) ? hi.x() : lo.x()), float((i & 2) ? hi.y() : lo.y()),
+                                   float((i & 4) ? hi.z() : lo.z()));
+  }
+  m.triangles = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+                 {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+  return m;
+}
+
+Eigen::Isometry3d at(double x, double y, double z) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Vector3d(x, y, z);
+  return T;
+}
+
+// ---- ray casting against analytic shapes ------------------------------------------------------
+
+TEST(RayScene, PlaneDistancesExact) {
+  RayScene scene;
+  scene.add_mesh(quad(100.0, 0.0), 7);
+  scene.commit();
+  std::mt19937_64 rng(1);
+  for (int i = 0; i < 1000; ++i) {
+    const double el = -(5.0 + 80.0 * uniform01(rng)) * kDeg, az = 2 * std::numbers::pi * uniform01(rng);
+    const Vector3d d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+    const RayHit hit = scene.intersect(Ray{.origin = {0, 0, 2.5f}, .direction = d.cast<float>()});
+    ASSERT_TRUE(hit.hit());
+    EXPECT_NEAR(hit.t, 2.5 / -d.z(), 1e-4 * (2.5 / -d.z()));
+    EXPECT_EQ(hit.label, 7);
+    EXPECT_NEAR(hit.normal.z(), 1.0, 1e-6);  // faces the ray
+  }
+  EXPECT_FALSE(scene.intersect(Ray{.origin = {0, 0, 2.5f}, .direction = {0, 0, 1}}).hit());
+  EXPECT_TRUE(scene.occluded(Ray{.origin = {0, 0, 2.5f}, .direction = {0, 0, -1}, .t_far = 3.0f}));
+  EXPECT_FALSE(scene.occluded(Ray{.origin = {0, 0, 2.5f}, .direction = {0, 0, -1}, .t_far = 2.0f}));
+}
+
+TEST(RayScene, SphereWithinTessellationError) {
+  io::Mesh sphere = make_icosphere(5);
+  for (auto& p : sphere.vertices.points) p = p * 1.5f + Eigen::Vector3f(0, 0, 6);
+  RayScene scene;
+  scene.add_mesh(sphere, 3);
+  scene.commit();
+  std::mt19937_64 rng(2);
+  int hits = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const Vector3d target = Vector3d(0, 0, 6) + 1.4 * Vector3d(2 * uniform01(rng) - 1, 2 * uniform01(rng) - 1, 0);
+    const Vector3d d = target.normalized();
+    // Analytic: |t d - c|^2 = r^2, nearest root.
+    const Vector3d c(0, 0, 6);
+    const double b = d.dot(c), disc = b * b - (c.squaredNorm() - 1.5 * 1.5);
+    const RayHit hit = scene.intersect(Ray{.origin = {0, 0, 0}, .direction = d.cast<float>()});
+    if (disc < 0.05) continue;  // grazing rays: the polyhedron and the sphere may disagree
+    ASSERT_TRUE(hit.hit());
+    // The hit lies on the sphere up to the tessellation's sagitta (< 0.4 mm at subdivision 5, r = 1.5).
+    EXPECT_NEAR((hit.t * d - c).norm(), 1.5, 5e-4);
+    EXPECT_NEAR(hit.t, b - std::sqrt(disc), 0.01);
+    EXPECT_EQ(hit.label, 3);
+    ++hits;
+  }
+  EXPECT_GT(hits, 1000);
+}
+
+TEST(RayScene, BoxFacesAndShapeIntersection) {
+  RayScene scene;
+  scene.add_mesh(box_mesh({1, -0.5, -0.5}, {2, 0.5, 0.5}), 1);
+  scene.commit();
+  for (double y : {-0.4, 0.0, 0.3}) {
+    const RayHit hit = scene.intersect(Ray{.origin = {0, float(y), 0}, .direction = {1, 0, 0}});
+    ASSERT_TRUE(hit.hit());
+    EXPECT_NEAR(hit.t, 1.0, 1e-6);
+    EXPECT_NEAR(hit.normal.x(), -1.0, 1e-6);
+  }
+  // The analytic shapes of the robot model agree with the meshed box.
+  const Shape box{.kind = Shape::Kind::Box, .name = "b", .T_link_shape = Eigen::Isometry3d::Identity(), .size = {1, 1, 1}};
+  EXPECT_NEAR(box.intersect({-1.5, 0.2, 0.1}, {1, 0, 0}), 1.0, 1e-12);
+  EXPECT_TRUE(std::isinf(box.intersect({-1.5, 0.7, 0}, {1, 0, 0})));
+  EXPECT_EQ(box.intersect({0, 0, 0}, {1, 0, 0}), 0.0);  // inside
+  const Shape cyl{.kind = Shape::Kind::Cylinder, .name = "c", .T_link_shape = Eigen::Isometry3d::Identity(), .size = {2, 2, 4}};
+  EXPECT_NEAR(cyl.intersect({-5, 0, 0}, {1, 0, 0}), 4.0, 1e-12);            // side
+  EXPECT_NEAR(cyl.intersect({0.5, 0, 10}, {0, 0, -1}), 8.0, 1e-12);        // cap
+  EXPECT_NEAR(cyl.intersect({-5, 0.6, 0}, {1, 0, 0}), 5.0 - 0.8, 1e-12);   // chord at y = 0.6
+  EXPECT_TRUE(std::isinf(cyl.intersect({-5, 1.1, 0}, {1, 0, 0})));
+  EXPECT_TRUE(cyl.contains({0.7, 0, 1.9}));
+  EXPECT_FALSE(cyl.contains({0.7, 0.8, 0}));
+  EXPECT_TRUE(cyl.contains({0.7, 0.8, 0}, 0.1));
+}
+
+TEST(RayScene, BadInput) {
+  RayScene scene;
+  EXPECT_THROW(scene.add_mesh(io::Mesh{}, 0), InputError);
+  io::Mesh bad = quad(1, 0);
+  bad.triangles.push_back({0, 1, 9});
+  EXPECT_THROW(scene.add_mesh(bad, 0), InputError);
+  EXPECT_THROW((void)scene.intersect(Ray{}), InputError);  // not committed
+}
+
+// ---- VLP-16 ---------------------------------------------------------------------------------
+
+struct FlatWorld {
+  RayScene scene;
+  FlatWorld() {
+    scene.add_mesh(quad(500.0, 0.0), kLabelTerrain);
+    scene.commit();
+  }
+};
+
+LidarMotion static_motion(double height) {
+  LidarMotion m;
+  m.T_world_sensor = [height](double) { return at(0, 0, height); };
+  return m;
+}
+
+TEST(Vlp16, BeamAnglesCountsAndTimestamps) {
+  const FlatWorld w;
+  const LidarConfig cfg{.range_noise = 0.0, .dropout = 0.0, .grazing_exponent = 0.0};
+  // At 1.5 m even the -1 deg beam meets the ground within the 100 m range.
+  const Sweep s = simulate_sweep(w.scene, static_motion(1.5), cfg, "H", 0, 10.0, 1);
+  EXPECT_EQ(s.num_rays, 1800u * 16u);       // 0.2 deg step, 16 beams
+  EXPECT_EQ(s.points.size(), 1800u * 8u);   // the 8 downward beams all hit the ground
+  std::set<int> rings;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const Vector3d p = s.points[i].cast<double>();
+    const int ring = s.rings[i];
+    rings.insert(ring);
+    const double el = -15.0 + 2.0 * ring;
+    EXPECT_NEAR(std::asin(p.z() / p.norm()) / kDeg, el, 1e-3);
+    EXPECT_NEAR(p.norm(), 1.5 / std::sin(-el * kDeg), 1e-4 * p.norm());
+    if (i > 0) {
+      EXPECT_GE(s.times[i], s.times[i - 1]);  // monotonic within the sweep
+    }
+  }
+  EXPECT_EQ(rings, (std::set<int>{0, 1, 2, 3, 4, 5, 6, 7}));
+  EXPECT_NEAR(s.times.front(), 10.0, 1e-12);
+  EXPECT_NEAR(s.times.back() - s.times.front(), 0.1, 1e-3);
+  // Consecutive firings of one laser are 0.2 deg apart in azimuth.
+  std::vector<double> az;
+  for (std::size_t i = 0; i < s.points.size(); ++i)
+    if (s.rings[i] == 0) az.push_back(std::atan2(s.points[i].x(), s.points[i].y()));
+  ASSERT_EQ(az.size(), 1800u);
+  for (std::size_t i = 1; i < 100; ++i) EXPECT_NEAR(std::remainder(az[i] - az[i - 1], 2 * std::numbers::pi), 0.2 * kDeg, 1e-6);
+}
+
+TEST(Vlp16, RangeNoiseAndDropoutStatistics) {
+  const FlatWorld w;
+  const LidarConfig cfg{.range_noise = 0.03, .dropout = 0.05, .grazing_exponent = 0.0};
+  const Sweep s = simulate_sweep(w.scene, static_motion(1.5), cfg, "H", 0, 0.0, 7);
+  double sum = 0, sum2 = 0;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const double el = (-15.0 + 2.0 * s.rings[i]) * kDeg;
+    const double e = s.points[i].cast<double>().norm() - 1.5 / std::sin(-el);
+    sum += e;
+    sum2 += e * e;
+  }
+  const double n = double(s.points.size());
+  EXPECT_NEAR(sum / n, 0.0, 0.002);
+  EXPECT_NEAR(std::sqrt(sum2 / n), 0.03, 0.0015);
+  EXPECT_NEAR(1.0 - n / (1800.0 * 8.0), 0.05, 0.006);  // dropout share
+  // Out of range: a plane 150 m below gives nothing.
+  const Sweep far = simulate_sweep(w.scene, static_motion(150.0), cfg, "H", 0, 0.0, 7);
+  EXPECT_TRUE(far.points.empty());
+}
+
+TEST(Vlp16, PerPointTimestampsCarryTheMotionSkew) {
+  // A sensor yawing at 1 rad/s inside a 10 m box room: with each point's own timestamp the walls
+  // come out straight; with one pose for the whole sweep they do not.
+  RayScene scene;
+  io::Mesh room = box_mesh({-10, -10, -3}, {10, 10, 6});
+  for (auto& t : room.triangles) std::swap(t[1], t[2]);  // inward-facing (irrelevant to Embree)
+  scene.add_mesh(room, 0);
+  scene.commit();
+  LidarMotion m;
+  m.T_world_sensor = [](double t) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(1.0 * t, Vector3d::UnitZ()).toRotationMatrix();
+    return T;
+  };
+  const LidarConfig cfg{.range_noise = 0.0, .dropout = 0.0, .grazing_exponent = 0.0};
+  const Sweep s = simulate_sweep(scene, m, cfg, "H", 0, 0.0, 1);
+  double err_own = 0, err_start = 0;
+  const auto wall_error = [](const Vector3d& p) {
+    return std::min({std::abs(std::abs(p.x()) - 10), std::abs(std::abs(p.y()) - 10), std::abs(p.z() + 3),
+                     std::abs(p.z() - 6)});
+  };
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    err_own = std::max(err_own, wall_error(m.T_world_sensor(s.times[i]) * s.points[i].cast<double>()));
+    err_start = std::max(err_start, wall_error(m.T_world_sensor(0.0) * s.points[i].cast<double>()));
+  }
+  EXPECT_LT(err_own, 1e-3);
+  EXPECT_GT(err_start, 0.5);  // 0.1 rad over a sweep at ~10 m
+}
+
+TEST(Vlp16, DeterministicAndSeedDependent) {
+  const FlatWorld w;
+  const LidarConfig cfg;
+  const Sweep a = simulate_sweep(w.scene, static_motion(3.0), cfg, "V", 4, 1.0, 11);
+  const Sweep b = simulate_sweep(w.scene, static_motion(3.0), cfg, "V", 4, 1.0, 11);
+  const Sweep c = simulate_sweep(w.scene, static_motion(3.0), cfg, "V", 4, 1.0, 12);
+  EXPECT_EQ(a.points, b.points);
+  EXPECT_EQ(a.times, b.times);
+  EXPECT_NE(a.points, c.points);
+  EXPECT_THROW((void)simulate_sweep(w.scene, static_motion(3.0), LidarConfig{.rate = -1}, "H", 0, 0, 1), ConfigError);
+}
+
+// ---- excavator --------------------------------------------------------------------------------
+
+TEST(Excavator, RobotModelJsonRoundTripAndForwardKinematics) {
+  const RobotModel m = make_excavator_model(GripperConfig{});
+  const RobotModel back = robot_from_json(to_json(m));
+  EXPECT_EQ(to_json(back), to_json(m));
+  JointState q;
+  q.set(joints::kCabinYaw, 0.4);
+  q.set(joints::kBoom, 0.3);
+  const auto a = m.forward_kinematics(q), b = back.forward_kinematics(q);
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].isApprox(b[i], 1e-12));
+  nlohmann::json broken = to_json(m);
+  broken["links"][2]["parent"] = "nonexistent";
+  EXPECT_THROW((void)robot_from_json(broken), InputError);
+}
+
+TEST(Excavator, ParkingPoseSensorsAndSwing) {
+  std::mt19937_64 rng(1);
+  const Terrain flat = Terrain::random(TerrainConfig{.slope_x = 0, .slope_y = 0, .bump_amplitude = 0, .roughness = 0}, rng);
+  const Excavator ex(ExcavatorConfig{}, GripperConfig{}, flat);
+  const auto links = ex.link_poses(0.0);
+  const auto& gripper = links[static_cast<std::size_t>(ex.model().link_index("gripper"))];
+  EXPECT_GT(-gripper.linear().col(0).z(), 0.99);  // approach axis points down
+  // The jaws stay above 1 m (they swing over stones of up to ~1 m height).
+  const double jaw_tip_z = (gripper * Vector3d(GripperConfig{}.jaw_length, 0, 0)).z();
+  EXPECT_GT(jaw_tip_z - flat.height(0, 0), 1.0);
+  // Orthogonal LiDARs: H spins about the vertical, V about a horizontal axis.
+  const Vector3d zh = ex.T_cabin_H().linear().col(2), zv = ex.T_cabin_V().linear().col(2);
+  EXPECT_NEAR(zh.z(), 1.0, 1e-12);
+  EXPECT_NEAR(zh.dot(zv), 0.0, 1e-12);
+  // Swing: +-110 deg with the defaults.
+  double max_yaw = 0;
+  for (double t = 0; t < 16; t += 0.01) max_yaw = std::max(max_yaw, std::abs(ex.cabin_yaw(t)));
+  EXPECT_NEAR(max_yaw / kDeg, 110.0, 0.1);
+  EXPECT_TRUE(ex.T_world_cabin(4.0).isApprox(ex.link_poses(4.0)[1], 1e-9));
+}
+
+// ---- state estimation ---------------------------------------------------------------------
+
+TEST(StateEstimation, NoisyDriftingButLocallySmooth) {
+  std::mt19937_64 rng(1);
+  const Terrain flat = Terrain::random(TerrainConfig{}, rng);
+  const Excavator ex(ExcavatorConfig{}, GripperConfig{}, flat);
+  const StateEstimationConfig cfg;
+  const StateEstimate s = simulate_state_estimation([&](double t) { return ex.T_world_cabin(t); },
+                                                    [&](double t) { return ex.joints_at(t); }, ex.model(), 0, 60, cfg, 3);
+  ASSERT_EQ(s.estimate.size(), 6001u);
+  double sq = 0, max_rel = 0, yaw_sq = 0;
+  for (std::size_t i = 0; i < s.estimate.size(); ++i) {
+    sq += (s.estimate[i].pose.translation() - s.truth[i].pose.translation()).squaredNorm();
+    const double dyaw = rotation_angle(s.estimate[i].pose.linear() * s.truth[i].pose.linear().transpose());
+    yaw_sq += dyaw * dyaw;
+    if (i > 0) {
+      const Eigen::Isometry3d rel_est = s.estimate[i - 1].pose.inverse() * s.estimate[i].pose;
+      const Eigen::Isometry3d rel_true = s.truth[i - 1].pose.inverse() * s.truth[i].pose;
+      max_rel = std::max(max_rel, (rel_est.translation() - rel_true.translation()).norm());
+    }
+  }
+  const double rms = std::sqrt(sq / double(s.estimate.size()));
+  EXPECT_GT(rms, 0.01);  // centimetres off: scan matching has work to do
+  EXPECT_LT(rms, 0.08);
+  EXPECT_LT(std::sqrt(yaw_sq / double(s.estimate.size())) / kDeg, 0.5);
+  EXPECT_LT(max_rel, 0.01);  // neighbours 10 ms apart agree to millimetres (de-skewing works)
+  // Joint encoders: noise of the configured size.
+  double jsq = 0;
+  for (std::size_t i = 0; i < s.joints.size(); ++i) {
+    const double e = s.joints[i].get(joints::kCabinYaw) - s.joints_truth[i].get(joints::kCabinYaw);
+    jsq += e * e;
+  }
+  EXPECT_NEAR(std::sqrt(jsq / double(s.joints.size())) / kDeg, cfg.joint_noise_deg, 0.005);
+}
+
+TEST(StateEstimation, InterpolatePose) {
+  std::vector<StampedPose> poses{{0.0, at(0, 0, 0)}, {1.0, at(2, 0, 0)}};
+  poses[1].pose.linear() = Eigen::AngleAxisd(0.5, Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Isometry3d mid = interpolate_pose(poses, 0.5);
+  EXPECT_TRUE(mid.translation().isApprox(Vector3d(1, 0, 0)));
+  EXPECT_NEAR(Eigen::AngleAxisd(mid.linear()).angle(), 0.25, 1e-12);
+  EXPECT_TRUE(interpolate_pose(poses, -3).isApprox(poses[0].pose));
+  EXPECT_TRUE(interpolate_pose(poses, 9).isApprox(poses[1].pose));
+  EXPECT_THROW((void)interpolate_pose({}, 0.0), InputError);
+}
+
+// ---- scenarios -------------------------------------------------------------------------------
+
+TEST(Scenario, Exp1SevenStonesInFrontOfTheMachine) {
+  const SimulationConfig cfg = scenario_config("exp1", default_real_mesh_dir());
+  const Site site = generate_site(cfg.site, 1);
+  ASSERT_EQ(site.stones.size(), 7u);
+  int real = 0;
+  for (const auto& s : site.stones) {
+    EXPECT_GE(s.volume, 0.5);
+    EXPECT_LE(s.volume, 1.0);
+    EXPECT_NEAR(mesh_volume(s.mesh), s.volume, 1e-6 * s.volume);
+    EXPECT_GT(s.centroid.x(), cfg.excavator.base_x + 3.0);  // ahead of the machine, clear of it
+    EXPECT_LE(s.centroid.head<2>().norm(), cfg.site.stones.placement_radius + 1e-9);
+    real += s.source != "procedural";
+  }
+  if (!default_real_mesh_dir().empty()) {
+    EXPECT_EQ(real, 2);
+  }
+  EXPECT_GE(cfg.site.terrain.size_x, 20.0);
+  EXPECT_GE(cfg.site.terrain.size_y, 20.0);
+  EXPECT_THROW((void)scenario_config("nope", {}), ConfigError);
+}
+
+TEST(Scenario, Exp2IsADifferentWiderArrangement) {
+  const Site a = generate_site(scenario_config("exp1", {}).site, 1);
+  const Site b = generate_site(scenario_config("exp2", {}).site, 1);
+  double spread_a = 0, spread_b = 0;
+  for (const auto& s : a.stones) spread_a = std::max(spread_a, std::abs(s.centroid.y()));
+  for (const auto& s : b.stones) spread_b = std::max(spread_b, std::abs(s.centroid.y()));
+  EXPECT_GT(spread_b, spread_a);
+  EXPECT_NE(a.stones[0].centroid, b.stones[0].centroid);
+}
+
+TEST(Scenario, PileStonesTouchWithoutInterpenetrating) {
+  for (std::uint64_t seed : {1, 2}) {
+    const SimulationConfig cfg = scenario_config("pile", default_real_mesh_dir());
+    const Site site = generate_site(cfg.site, seed);
+    ASSERT_EQ(site.stones.size(), 6u);
+    std::vector<SolidMesh> solids;
+    for (const auto& s : site.stones) solids.emplace_back(s.mesh);
+    for (std::size_t k = 0; k < site.stones.size(); ++k) {
+      double gap = 1e9;
+      for (std::size_t j = 0; j < site.stones.size(); ++j) {
+        if (j == k) continue;
+        const test::TriangleSoup other(site.stones[j].mesh);
+        for (std::size_t v = 0; v < site.stones[k].mesh.vertices.size(); ++v) {
+          const Vector3d p = site.stones[k].mesh.vertices.world(v);
+          EXPECT_FALSE(solids[j].contains(p)) << "stone " << k << " vertex inside stone " << j;
+          gap = std::min(gap, other.distance(p));
+        }
+      }
+      // Each stone touches a neighbour (gap within the bisection tolerance plus the mesh's facets).
+      EXPECT_LT(gap, cfg.site.stones.pile_gap + 0.05) << "seed " << seed << " stone " << k;
+    }
+  }
+}
+
+TEST(Scenario, RealStoneMeshesNormalisedAndScaled) {
+  CAIRN_REQUIRE_REAL_DATA("epfl-stone-models");
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(test::real_data("epfl-stone-models"))) {
+    if (e.path().extension() != ".ply") continue;
+    const io::Mesh m = prepare_real_stone_mesh(io::read_ply_mesh(e.path()), 0.7);
+    EXPECT_NEAR(mesh_volume(m), 0.7, 1e-6) << e.path();
+    EXPECT_LT(mesh_centroid(m).norm(), 1e-6) << e.path();
+    Eigen::AlignedBox3d box;
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) box.extend(m.vertices.world(i));
+    EXPECT_GT(box.sizes().x(), box.sizes().z()) << e.path();  // rests on its broad side
+    EXPECT_LT(box.sizes().maxCoeff(), 3.0) << e.path();        // metres, not millimetres
+    ++n;
+  }
+  EXPECT_GE(n, 5);
+  EXPECT_THROW((void)prepare_real_stone_mesh(quad(1, 0), 1.0), InputError);  // open: no volume
+}
+
+// ---- sweeps of the full world: labels against ground truth ------------------------------------
+
+TEST(SimulatedSweeps, LabelsMatchTheTrueSurfaces) {
+  const SimulationConfig cfg = scenario_config("exp1", default_real_mesh_dir());
+  const SimulatedWorld world = make_world(cfg, 5);
+  const auto schedule = sweep_schedule(cfg.lidar, 8.0, 5);
+  std::vector<test::TriangleSoup> soups;
+  for (const auto& s : world.site.stones) soups.emplace_back(s.mesh);
+  std::size_t stone = 0, terrain = 0, robot = 0, total = 0, stone_bad = 0, terrain_bad = 0, robot_bad = 0;
+  std::set<int> stones_seen;
+  const double tol = 4 * cfg.lidar.range_noise + 0.01;
+  for (std::size_t i = 0; i < schedule.size(); i += 8) {  // 20 sweeps spread over 8 s of swinging
+    const Sweep sw = simulate_scheduled_sweep(world, cfg.lidar, schedule[i], 5);
+    const Eigen::Isometry3d T_cs = sw.sensor == "H" ? world.excavator.T_cabin_H() : world.excavator.T_cabin_V();
+    for (std::size_t p = 0; p < sw.points.size(); ++p) {
+      const Vector3d x = world.excavator.T_world_cabin(sw.times[p]) * T_cs * sw.points[p].cast<double>();
+      ++total;
+      if (sw.truth[p] >= 0) {
+        ++stone;
+        stones_seen.insert(sw.truth[p]);
+        if (p % 7 == 0) stone_bad += soups[static_cast<std::size_t>(sw.truth[p])].distance(x) > tol;
+      } else if (sw.truth[p] == kLabelTerrain) {
+        ++terrain;
+        terrain_bad += std::abs(x.z() - world.site.terrain.height(x.x(), x.y())) > tol;
+      } else {
+        ASSERT_EQ(sw.truth[p], kLabelRobot);
+        ++robot;
+        const auto links = world.excavator.link_poses(sw.times[p]);
+        bool inside = false;
+        for (std::size_t l = 0; l < links.size() && !inside; ++l)
+          for (const auto& s : world.excavator.model().links[l].shapes)
+            inside = inside || s.contains((links[l] * s.T_link_shape).inverse() * x, tol);
+        robot_bad += !inside;
+      }
+    }
+  }
+  EXPECT_GT(stone, 1000u);
+  EXPECT_GT(terrain, 10000u);
+  EXPECT_GT(robot, 100u);  // the LiDARs see the machine's own arm: the self-filter has work to do
+  // Many returns are the machine itself (roof, boom, stick: ~40 % with the default mounts), as on
+  // the real excavator; the mapping stage's self-filter removes them.
+  EXPECT_LT(double(robot) / double(total), 0.5);
+  EXPECT_EQ(stones_seen.size(), world.site.stones.size());
+  EXPECT_EQ(robot_bad, 0u);
+  EXPECT_LT(double(stone_bad) / double(stone / 7), 0.002);
+  EXPECT_LT(double(terrain_bad) / double(terrain), 0.002);
+}
+
+// ---- run directory ---------------------------------------------------------------------------
+
+SimulationConfig small_run_config() {
+  SimulationConfig cfg = scenario_config("exp1", default_real_mesh_dir());
+  cfg.drone.pixel_stride = 8;
+  cfg.drone.orbit_images = 6;
+  cfg.snapshot.spacing = 0.1;
+  return cfg;
+}
+
+std::string file_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(RunDirectory, WrittenAndReadBackWithOneCall) {
+  const fs::path dir = test::temp_dir("sim_run") / "run";
+  const SimulationConfig cfg = small_run_config();
+  const SimulationSummary s = simulate_run("exp1", cfg, 3, 0.6, dir);
+  const io::RunDirectory run = io::open_run_directory(dir);
+  EXPECT_EQ(run.scenario, "exp1");
+  EXPECT_EQ(run.seed, 3u);
+  EXPECT_EQ(run.scans.size(), s.sweeps);
+  EXPECT_GE(s.sweeps, 8u);
+  for (std::size_t i = 1; i < run.scans.size(); ++i) EXPECT_LE(run.scans[i - 1].t_start, run.scans[i].t_start);
+  const PointCloud scan = run.read_scan(run.scans.front());
+  EXPECT_EQ(scan.size(), run.scans.front().num_points);
+  ASSERT_EQ(scan.fields.size(), 1u);
+  EXPECT_EQ(scan.fields[0].name, "ring");
+  for (double t : scan.times) {
+    EXPECT_GE(t, run.scans.front().t_start - 1e-9);
+    EXPECT_LE(t, run.scans.front().t_end + 1e-9);
+  }
+  EXPECT_EQ(run.read_scan_truth(run.scans.front()).size(), scan.size());
+  // Extrinsics and robot model are those of the simulated machine.
+  const SimulatedWorld world = make_world(cfg, 3);
+  EXPECT_TRUE(run.T_cabin_sensor.at("H").isApprox(world.excavator.T_cabin_H(), 1e-12));
+  EXPECT_TRUE(run.T_cabin_sensor.at("V").isApprox(world.excavator.T_cabin_V(), 1e-12));
+  EXPECT_EQ(to_json(run.robot), to_json(world.excavator.model()));
+  EXPECT_EQ(run.state_estimate.size(), 61u);  // 100 Hz over 0.6 s
+  EXPECT_EQ(run.joint_states.size(), 61u);
+  // Drone data: cloud, COLMAP model, VINS trajectory, and the true similarity.
+  ASSERT_FALSE(run.drone_cloud.empty());
+  const io::ColmapModel colmap = io::read_colmap_text(run.drone_sparse);
+  EXPECT_EQ(colmap.images.size(), s.drone_images);
+  std::ifstream truth(dir / "truth" / "drone.json");
+  const Similarity T_map_drone = Similarity::from_matrix(matrix_from_json(nlohmann::json::parse(truth).at("T_map_drone")));
+  EXPECT_GT(T_map_drone.scale, 0.0);
+  EXPECT_TRUE(fs::exists(dir / "preview.png"));
+  EXPECT_TRUE(fs::exists(dir / "truth" / "map_snapshot.ply"));
+  EXPECT_EQ(io::read_ply_mesh(dir / "truth" / "stones" / "stone_00.ply").triangles.size(),
+            world.site.stones[0].mesh.triangles.size());
+}
+
+TEST(RunDirectory, SameSeedSameBytes) {
+  const fs::path root = test::temp_dir("sim_determinism");
+  SimulationConfig cfg = small_run_config();
+  simulate_run("exp2", cfg, 9, 0.35, root / "a");
+  simulate_run("exp2", cfg, 9, 0.35, root / "b");
+  simulate_run("exp2", cfg, 10, 0.35, root / "c");
+  std::size_t files = 0;
+  for (const auto& e : fs::recursive_directory_iterator(root / "a")) {
+    if (!e.is_regular_file()) continue;
+    const fs::path rel = fs::relative(e.path(), root / "a");
+    ASSERT_TRUE(fs::exists(root / "b" / rel)) << rel;
+    EXPECT_TRUE(file_bytes(e.path()) == file_bytes(root / "b" / rel)) << rel << " differs";
+    ++files;
+  }
+  EXPECT_GT(files, 20u);
+  EXPECT_FALSE(file_bytes(root / "a" / "scans" / "H" / "000000.ply") == file_bytes(root / "c" / "scans" / "H" / "000000.ply"));
+}
+
+TEST(RunDirectory, BadInputGivesClearErrors) {
+  const fs::path root = test::temp_dir("sim_bad");
+  EXPECT_THROW((void)io::open_run_directory(root / "missing"), InputError);
+  SimulationConfig cfg = small_run_config();
+  cfg.with_drone = false;
+  simulate_run("pile", cfg, 1, 0.25, root / "run");
+  // Refuses to write into a non-empty directory, and never deletes what is not a run directory.
+  EXPECT_THROW(simulate_run("pile", cfg, 1, 0.25, root / "run"), InputError);
+  fs::create_directories(root / "other");
+  std::ofstream(root / "other" / "keep.txt") << "precious";
+  EXPECT_THROW(simulate_run("pile", cfg, 1, 0.25, root / "other", true), InputError);
+  EXPECT_TRUE(fs::exists(root / "other" / "keep.txt"));
+  EXPECT_NO_THROW(simulate_run("pile", cfg, 2, 0.25, root / "run", true));
+  EXPECT_THROW(simulate_run("pile", cfg, 1, -1.0, root / "neg"), ConfigError);
+  // Missing and corrupt files are named.
+  fs::copy(root / "run", root / "broken", fs::copy_options::recursive);
+  fs::remove(root / "broken" / "state" / "cabin_poses.tum");
+  try {
+    (void)io::open_run_directory(root / "broken");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cabin_poses.tum"), std::string::npos) << e.what();
+  }
+  std::ofstream(root / "run" / "scans" / "index.csv", std::ios::app) << "H,99,abc,1,2,x.ply\n";
+  EXPECT_THROW((void)io::open_run_directory(root / "run"), InputError);
+}
+
+TEST(RunDirectory, NpyAndJointStateRoundTrips) {
+  const fs::path dir = test::temp_dir("sim_npy");
+  const std::vector<std::int32_t> v{-3, -1, 0, 5, 2147483647, -2147483647 - 1};
+  io::write_npy_int32(dir / "a.npy", v);
+  EXPECT_EQ(io::read_npy_int32(dir / "a.npy"), v);
+  std::ofstream(dir / "bad.npy") << "not numpy";
+  EXPECT_THROW((void)io::read_npy_int32(dir / "bad.npy"), InputError);
+  JointState q;
+  q.time = 0.125;
+  q.set("a", 0.1);
+  q.set("b", -2e-7);
+  io::write_joint_states(dir / "j.csv", {q, q});
+  const auto back = io::read_joint_states(dir / "j.csv");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0].names, q.names);
+  EXPECT_EQ(back[0].positions, q.positions);
+  EXPECT_EQ(back[0].time, q.time);
+}
+
+}  // namespace
+}  // namespace cairn::sim
