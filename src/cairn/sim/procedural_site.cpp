@@ -58,6 +58,10 @@ constexpr Range kCutOffset{0.62, 0.85};        // plane offset / support along n
 // Placement and sampling -----------------------------------------------------------------------
 constexpr double kMaxRoundTilt = 10.0 * kPi / 180.0;  // roundish stones rest slightly tilted
 constexpr int kMaxPlacementAttempts = 10000;          // rejection samples per stone
+constexpr int kMaxSettleSteps = 120;                  // tipping steps when settling
+constexpr double kSettleStep = 0.5 * kPi / 180.0;     // [rad] per tipping step
+constexpr double kSettleContact = 0.01;               // [m] above the terrain still counts as support
+constexpr double kSettleMargin = 0.05;                // [m] centroid inside the support by this much
 constexpr double kMaxTerrainSamples = 1e8;            // guard against absurd spacing
 
 // Inside queries -------------------------------------------------------------------------------
@@ -345,6 +349,74 @@ bool collides(const std::vector<Eigen::Vector3d>& v, const Eigen::Vector3d& cent
   return false;
 }
 
+/// Quasi-static settling: while the centroid's horizontal projection lies outside the support
+/// (the vertices within settle_contact of the lowest contact), the stone tips by settle_step about
+/// the horizontal axis through the support towards the centroid, then is lowered onto the terrain
+/// again. Stops when stable or after kMaxSettleSteps. Returns the rotation applied.
+Eigen::Matrix3d settle(std::vector<Eigen::Vector3d>& v, const Vec2d& spot, const Terrain& terrain,
+                       const StoneConfig& c) {
+  Eigen::Matrix3d applied = Eigen::Matrix3d::Identity();
+  for (int step = 0; step < kMaxSettleSteps; ++step) {
+    const double z = resting_height(v, spot, terrain, c.embed_depth);
+    // Support: vertices at most settle_contact above the terrain (with the stone embedded).
+    std::vector<Vec2d> support;
+    for (const auto& p : v) {
+      const double gap = p.z() + z - terrain.height(spot.x() + p.x(), spot.y() + p.y());
+      if (gap <= kSettleContact) support.push_back(p.head<2>());
+    }
+    if (support.size() < 3) support.clear();
+    // Is the centroid (origin of v) inside the convex hull of the support? Monotone chain.
+    bool stable = false;
+    Vec2d towards = Vec2d::Zero();
+    if (!support.empty()) {
+      std::sort(support.begin(), support.end(), [](const Vec2d& a, const Vec2d& b) {
+        return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+      });
+      std::vector<Vec2d> hull;
+      const auto cross = [](const Vec2d& o, const Vec2d& a, const Vec2d& b) {
+        return (a - o).x() * (b - o).y() - (a - o).y() * (b - o).x();
+      };
+      for (int pass = 0; pass < 2; ++pass) {
+        const std::size_t base = hull.size();
+        for (const auto& q : support) {
+          while (hull.size() >= base + 2 && cross(hull[hull.size() - 2], hull.back(), q) <= 0) hull.pop_back();
+          hull.push_back(q);
+        }
+        hull.pop_back();
+        std::reverse(support.begin(), support.end());
+      }
+      stable = hull.size() >= 3;
+      for (std::size_t i = 0; i < hull.size() && stable; ++i) {
+        const Vec2d& a = hull[i];
+        const Vec2d& b = hull[(i + 1) % hull.size()];
+        // Inside with a margin: the centroid must be settle_margin inside every edge.
+        if (cross(a, b, Vec2d::Zero()) < kSettleMargin * (b - a).norm()) stable = false;
+      }
+      Vec2d mean = Vec2d::Zero();
+      for (const auto& q : hull) mean += q / static_cast<double>(hull.size());
+      towards = -mean;  // from the support towards the centroid
+    } else {
+      // A single contact point: tip away from the lowest vertex.
+      double lowest = std::numeric_limits<double>::max();
+      for (const auto& p : v) {
+        const double gap = p.z() - terrain.height(spot.x() + p.x(), spot.y() + p.y());
+        if (gap < lowest) {
+          lowest = gap;
+          towards = -p.head<2>();
+        }
+      }
+    }
+    if (stable || towards.norm() < 1e-9) break;
+    // Tip: the centroid side goes down, i.e. rotate about the horizontal axis perpendicular to
+    // `towards` so that points in that direction move down.
+    const Eigen::Vector3d axis = Eigen::Vector3d(-towards.y(), towards.x(), 0.0).normalized();
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(kSettleStep, axis).toRotationMatrix();
+    for (auto& p : v) p = R * p;
+    applied = R * applied;
+  }
+  return applied;
+}
+
 /// Pile: the stone approaches the pile's centre along a random direction and stops where it
 /// (almost) touches a stone placed before (bisection on the distance, tolerance pile_gap).
 Vec2d pile_spot(const std::vector<Eigen::Vector3d>& v, const RawMesh& local, double radius,
@@ -356,12 +428,14 @@ Vec2d pile_spot(const std::vector<Eigen::Vector3d>& v, const RawMesh& local, dou
   const Vec2d dir(std::cos(angle), std::sin(angle));
   const auto blocked_at = [&](double d) {
     const Vec2d spot = centre + d * dir;
-    const Eigen::Vector3d centroid(spot.x(), spot.y(), resting_height(v, spot, terrain, c.embed_depth));
-    if (collides(v, centroid, placed, solids)) return true;
+    std::vector<Eigen::Vector3d> v_here = v;
+    if (c.settle) settle(v_here, spot, terrain, c);
+    const Eigen::Vector3d centroid(spot.x(), spot.y(), resting_height(v_here, spot, terrain, c.embed_depth));
+    if (collides(v_here, centroid, placed, solids)) return true;
     // The other way round: a placed stone's vertex inside the new one.
     std::vector<Eigen::Vector3d> w;
-    w.reserve(v.size());
-    for (const auto& p : v) w.push_back(p + centroid);
+    w.reserve(v_here.size());
+    for (const auto& p : v_here) w.push_back(p + centroid);
     const SolidMesh mine(to_mesh(w, local.t));
     for (const auto& stone : placed) {
       if (!stone.bounds.intersects(mine.bounds())) continue;
@@ -405,6 +479,10 @@ Stone place_stone(StoneShape shape, std::vector<Footprint>& footprints, const st
   const Vec2d spot = c.arrangement == "pile"
                          ? pile_spot(v, shape.local, radius, placed, solids, c, terrain, rng)
                          : free_spot(radius, footprints, c, rng);
+  if (c.settle) {
+    const Eigen::Matrix3d tipped = settle(v, spot, terrain, c);
+    stone.yaw = std::atan2(tipped(1, 0), tipped(0, 0)) + stone.yaw;
+  }
   footprints.push_back({spot, radius});
   stone.centroid =
       Eigen::Vector3d(spot.x(), spot.y(), resting_height(v, spot, terrain, c.embed_depth));

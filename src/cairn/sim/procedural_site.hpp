@@ -64,6 +64,9 @@ struct StoneConfig {
   /// of the stones, each scaled to the drawn volume; the rest are procedural rocks.
   std::vector<std::string> real_meshes;
   double real_fraction = 0.0;
+  /// Tip each stone quasi-statically until its centroid lies over its support on the terrain, so
+  /// it rests stably (checked in MuJoCo: tests/physics). Off by default to keep older sites.
+  bool settle = false;
 
   template <class V>
   void visit(V& v) {
@@ -84,6 +87,7 @@ struct StoneConfig {
     v("pile_gap", pile_gap, "[m] largest gap between touching stones (pile)");
     v("real_meshes", real_meshes, "PLY meshes of real scanned stones");
     v("real_fraction", real_fraction, "share of stones made from real meshes");
+    v("settle", settle, "tip stones until they rest stably on the terrain");
   }
 };
 

@@ -92,6 +92,7 @@ SimulationConfig scenario_config(const std::string& name, const fs::path& real_m
   c.site.terrain.slope_y = 0.02;
   c.site.stones.keep_out_x = kBaseX;
   c.site.stones.keep_out_radius = kKeepOutRadius;
+  c.site.stones.settle = true;
   c.excavator.base_x = kBaseX;
   c.drone.extent_x = c.drone.extent_y = kDroneExtent;
   std::vector<std::string> real = real_mesh_files(real_mesh_dir);
