@@ -12,6 +12,7 @@
 #include "cairn/core/error.hpp"
 #include "cairn/sim/physics/grasp_json.hpp"
 #include "cairn/sim/physics/physics.hpp"
+#include "cairn/sim/simulation.hpp"
 #include "commands.hpp"
 
 namespace cairn::app {
@@ -56,11 +57,11 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   GraspTrialConfig cfg;
   if (!a.config_file.empty()) config::load_yaml_file(cfg, a.config_file);
   for (const auto& o : a.overrides) config::apply_override(cfg, o);
-  if (a.scenario != "default") {
-    throw InputError("--scenario: only 'default' (generate_site(SiteConfig{}, seed)) is supported so far, not '" +
-                     a.scenario + "'");
-  }
-  sim::Site site = sim::generate_site(sim::SiteConfig{}, a.seed);
+  // "default": the procedural site of SiteConfig{}; otherwise the site of a simulator scenario
+  // (the same stones `cairn simulate --scenario NAME --seed N` writes).
+  sim::Site site = a.scenario == "default"
+                       ? sim::generate_site(sim::SiteConfig{}, a.seed)
+                       : sim::generate_site(sim::scenario_config(a.scenario, sim::default_real_mesh_dir()).site, a.seed);
   const int n = static_cast<int>(site.stones.size());
   if (a.stone < 0 || a.stone >= n) {
     throw InputError("--stone: " + std::to_string(a.stone) + " is not a stone of this site (0.." + std::to_string(n - 1) + ")");
@@ -125,7 +126,7 @@ void add_grasp_trial_command(CLI::App& app, std::function<int()>& run) {
   auto* cmd = app.add_subcommand("grasp-trial",
                                  "Execute a grasp (approach, close, lift, swing, place, release) on a simulated site "
                                  "in MuJoCo; print the JSON result (exit 0 success, 3 failed)");
-  cmd->add_option("--scenario", args->scenario, "site scenario (so far: default)")->capture_default_str();
+  cmd->add_option("--scenario", args->scenario, "site: default, or a simulator scenario (exp1, exp2, pile)")->capture_default_str();
   cmd->add_option("--seed", args->seed, "site seed")->capture_default_str();
   cmd->add_option("--stone", args->stone, "index of the stone to grasp")->required();
   cmd->add_option("--grasp", args->grasp_file,

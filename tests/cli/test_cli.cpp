@@ -139,3 +139,30 @@ TEST(Cli, DemoFindsTheSevenStonesAndDrawsThem) {
   EXPECT_TRUE(std::filesystem::exists(dir / "demo" / "map.ply"));
   EXPECT_NE(r.err.find("[4/4]"), std::string::npos);  // progress on stderr
 }
+
+TEST(Cli, SimulateWritesARunDirectory) {
+  const auto dir = test::temp_dir("cli_simulate");
+  const auto out = dir / "run";
+  const CmdResult r = run("simulate --scenario pile --seed 2 --duration 0.5 --no-drone --out " + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_GE(j["sweeps"].get<int>(), 8);
+  EXPECT_GT(j["points"].get<int>(), 50000);
+  for (const char* f : {"run.json", "robot.json", "extrinsics.json", "scans/index.csv", "state/cabin_poses.tum",
+                        "state/joint_states.csv", "truth/site.json", "truth/cabin_poses.tum", "preview.png"})
+    EXPECT_TRUE(std::filesystem::exists(out / f)) << f;
+  EXPECT_NE(r.err.find("LiDAR sweeps"), std::string::npos);  // progress on stderr
+  // A second run into the same directory is refused (exit 2), --overwrite replaces it.
+  const CmdResult again = run("simulate --scenario pile --seed 2 --duration 0.5 --no-drone --out " + out.string());
+  EXPECT_EQ(again.code, 2);
+  EXPECT_NE(again.err.find("not empty"), std::string::npos) << again.err;
+  EXPECT_EQ(run("simulate --scenario pile --seed 3 --duration 0.5 --no-drone --overwrite --out " + out.string()).code, 0);
+  // Unknown scenario and bad --set values: exit 2 with the reason.
+  const CmdResult bad = run("simulate --scenario moon --out " + (dir / "x").string());
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("unknown scenario 'moon'"), std::string::npos) << bad.err;
+  const CmdResult bad_set =
+      run("simulate --duration 0.5 --set simulation.lidar.rate=-3 --out " + (dir / "y").string());
+  EXPECT_EQ(bad_set.code, 2);
+  EXPECT_NE(bad_set.err.find("rate"), std::string::npos) << bad_set.err;
+}

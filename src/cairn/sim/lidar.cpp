@@ -15,6 +15,8 @@ namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr int kLasers = 16;
 
+}  // namespace
+
 void validate(const LidarConfig& c) {
   const auto require = [](bool ok, const char* message) {
     if (!ok) throw ConfigError(std::string("LidarConfig: ") + message);
@@ -30,6 +32,8 @@ void validate(const LidarConfig& c) {
   require(c.dropout >= 0 && c.dropout < 1, "dropout must be in [0, 1)");
   require(std::isfinite(c.grazing_exponent) && c.grazing_exponent >= 0, "grazing_exponent must be >= 0");
 }
+
+namespace {
 
 constexpr int kCyclesPerShapeUpdate = 16;
 

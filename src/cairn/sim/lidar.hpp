@@ -46,6 +46,9 @@ inline constexpr double kVlp16Elevation[16] = {-15, 1, -13, 3, -11, 5, -9, 7, -7
 /// Ring index of laser l: 0 = lowest beam (-15 deg), 15 = highest (+15 deg), as ROS drivers number them.
 inline int vlp16_ring(int laser) { return static_cast<int>((kVlp16Elevation[laser] + 15.0) / 2.0); }
 
+/// Throws ConfigError naming the first invalid value.
+void validate(const LidarConfig& config);
+
 /// One revolution of one sensor: returns in the sensor frame at their own firing time.
 struct Sweep {
   std::string sensor;  // "H" or "V"

@@ -141,6 +141,8 @@ SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed) {
 }
 
 std::vector<SweepSchedule> sweep_schedule(const LidarConfig& lidar, double duration, std::uint64_t seed) {
+  validate(lidar);
+  if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("sweep_schedule: duration must be positive");
   const double period = 1.0 / lidar.rate;
   std::vector<SweepSchedule> all;
   for (const std::string sensor : {"H", "V"}) {
@@ -179,6 +181,7 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
     if (!fs::exists(out / "run.json")) throw InputError(out.string() + ": not a run directory; refusing to overwrite it");
     fs::remove_all(out);
   }
+  validate(config.lidar);  // fail before any file is written
   Stopwatch total, sw;
   SimulationSummary summary{.scenario = scenario, .seed = seed, .duration = duration};
   const SimulatedWorld world = make_world(config, seed);
