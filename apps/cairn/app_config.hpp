@@ -7,6 +7,7 @@
 #include "cairn/core/config.hpp"
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
+#include "cairn/mapping/config.hpp"
 #include "cairn/segmentation/segmenter.hpp"
 #include "cairn/sim/simulation.hpp"
 
@@ -16,6 +17,7 @@ struct AppConfig {
   VoxelGridConfig voxel;
   NormalConfig normals;
   SegmentationConfig segmentation;
+  MappingConfig mapping;
   sim::SimulationConfig simulation;  // generic defaults; `cairn simulate` starts from its scenario
 
   template <class V>
@@ -23,6 +25,7 @@ struct AppConfig {
     v("voxel", voxel, "voxel-grid downsampling (Sec. 4.2, Table 3)");
     v("normals", normals, "PCA normal estimation");
     v("segmentation", segmentation, "map segmentation (Sec. 4.3)");
+    v("mapping", mapping, "LiDAR mapping (Sec. 4.2)");
     v("simulation", simulation, "simulator: site, excavator, LiDARs, state estimation, drone");
   }
 };

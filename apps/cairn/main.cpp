@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   app::add_info_command(app, run);
   app::add_demo_command(app, run);
   app::add_simulate_command(app, run);
+  app::add_map_command(app, run);
 #ifdef CAIRN_WITH_PHYSICS
   app::add_grasp_trial_command(app, run);
 #endif

@@ -166,3 +166,27 @@ TEST(Cli, SimulateWritesARunDirectory) {
   EXPECT_EQ(bad_set.code, 2);
   EXPECT_NE(bad_set.err.find("rate"), std::string::npos) << bad_set.err;
 }
+
+TEST(Cli, MapWritesAMapAndATrajectory) {
+  const auto dir = test::temp_dir("cli_map");
+  const auto run_dir = dir / "run";
+  ASSERT_EQ(run("simulate --scenario exp1 --seed 1 --duration 2 --no-drone --out " + run_dir.string()).code, 0);
+  const auto map = dir / "map.ply";
+  const auto traj = dir / "traj.txt";
+  const CmdResult r = run("map " + run_dir.string() + " --out " + map.string() + " --trajectory " + traj.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_GT(j["nodes"].get<int>(), 5);
+  EXPECT_GT(j["map_points"].get<int>(), 10000);
+  EXPECT_TRUE(j["timings_ms"].contains("icp"));
+  EXPECT_TRUE(j.contains("ate_raw") && j.contains("ate_mapped"));
+  EXPECT_TRUE(std::filesystem::exists(map));
+  EXPECT_TRUE(std::filesystem::exists(traj));
+  EXPECT_NE(r.err.find("scan pairs"), std::string::npos);  // progress on stderr
+  const CmdResult missing = run("map " + (dir / "nothing").string() + " --out " + map.string());
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("nothing"), std::string::npos) << missing.err;
+  const CmdResult bad_set = run("map " + run_dir.string() + " --out " + map.string() + " --set mapping.m=0");
+  EXPECT_EQ(bad_set.code, 2);
+  EXPECT_NE(bad_set.err.find("mapping.m"), std::string::npos) << bad_set.err;
+}

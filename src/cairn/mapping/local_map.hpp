@@ -1,0 +1,56 @@
+#pragma once
+// Sec. 4.2: the robot-centric local map — a voxel grid (res_voxel = 3 cm, n_min = 1, Table 3)
+// restricted to a vertical cylinder of radius R_map = 10 m around the robot, updated online.
+// Each voxel keeps the running centroid of the points that fell into it (as a voxel-grid filter
+// of everything seen). Other stages take snapshots; object grasps remove a sphere (Sec. 5,
+// R_obj) and insertions add points (e.g. a placed stone's model).
+#include <cstdint>
+#include <span>
+#include <unordered_map>
+
+#include "cairn/core/point_cloud.hpp"
+#include "cairn/mapping/config.hpp"
+
+namespace cairn {
+
+/// Moves every point onto the least-squares plane of its neighbours within `radius` when their
+/// curvature λ0/(λ0+λ1+λ2) is below `max_curvature` (noise removal across the surface, edges and
+/// corners kept), then re-voxelises at `res_voxel` (merged duplicates). TBB-parallel, deterministic.
+[[nodiscard]] PointCloud smooth_surface(const PointCloud& cloud, double radius, double max_curvature, double res_voxel);
+
+class LocalMap {
+ public:
+  explicit LocalMap(LocalMapConfig config = {});
+
+  /// Adds world points (cloud.origin + point). Non-finite points are skipped.
+  void insert(const PointCloud& cloud);
+  /// Adds points given in frame F, with T_world_F.
+  void insert(std::span<const Vec3f> points, const Eigen::Isometry3d& T_world_F);
+  /// Drops voxels whose centre is farther than R_map from `center` horizontally (cylinder).
+  std::size_t crop(const Vec3d& center);
+  /// Removes every voxel whose centroid lies within `radius` of `center`; returns how many.
+  std::size_t remove_sphere(const Vec3d& center, double radius);
+  void clear();
+
+  /// One point per voxel with at least n_min points, at the centroid (world = origin + point),
+  /// then smoothed (config.smoothing_radius > 0, see smooth_surface). The "count" scalar field
+  /// holds the number of points per voxel (unsmoothed snapshots only).
+  [[nodiscard]] PointCloud snapshot() const;
+  [[nodiscard]] std::size_t num_voxels() const { return voxels_.size(); }
+  [[nodiscard]] const LocalMapConfig& config() const { return config_; }
+
+ private:
+  struct Voxel {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // relative to origin_
+    std::uint32_t count = 0;
+  };
+  [[nodiscard]] std::uint64_t key_of(const Eigen::Vector3d& p_rel) const;
+  void add(const Eigen::Vector3d& p_world);
+
+  LocalMapConfig config_;
+  bool has_origin_ = false;
+  Vec3d origin_ = Vec3d::Zero();
+  std::unordered_map<std::uint64_t, Voxel> voxels_;
+};
+
+}  // namespace cairn

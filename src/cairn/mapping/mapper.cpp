@@ -1,0 +1,420 @@
+#include "cairn/mapping/mapper.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/voxel_grid.hpp"
+#include "cairn/mapping/self_filter.hpp"
+
+namespace cairn {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+std::vector<Vec3f> downsample(std::span<const Vec3f> points, double leaf) {
+  PointCloud c;
+  c.points.assign(points.begin(), points.end());
+  return voxel_downsample(c, {.res_voxel = leaf, .n_min = 1}).points;
+}
+
+int sensor_slot(const std::string& sensor) {
+  if (sensor == "H") return 0;
+  if (sensor == "V") return 1;
+  throw InputError("mapping: unknown sensor '" + sensor + "' (expected H or V)");
+}
+
+}  // namespace
+
+Mapper::Mapper(MapperSetup setup, MappingConfig config)
+    : config_(std::move(config)), setup_(std::move(setup)), map_(config_.local_map) {
+  config_.validate();
+  const auto it = setup_.T_cabin_sensor.find("H");
+  if (it == setup_.T_cabin_sensor.end()) throw InputError("mapping: no extrinsic T_cabin_H for the horizontal LiDAR");
+  T_cabin_H_ = it->second;
+}
+
+void Mapper::add_state_estimate(const StampedPose& p) {
+  if (!std::isfinite(p.time) || !p.pose.matrix().allFinite()) {
+    spdlog::warn("mapping: non-finite state estimate at t = {} skipped", p.time);
+    return;
+  }
+  if (!state_.empty() && p.time <= state_.back().time) {
+    spdlog::warn("mapping: state estimate at t = {} is not after the previous one; skipped", p.time);
+    return;
+  }
+  state_.push_back(p);
+}
+
+void Mapper::add_state_estimates(const std::vector<StampedPose>& poses) {
+  state_.reserve(state_.size() + poses.size());
+  for (const StampedPose& p : poses) add_state_estimate(p);
+}
+
+void Mapper::add_joint_state(const JointState& q) {
+  if (!joints_.empty() && q.time <= joints_.back().time) return;
+  joints_.push_back(q);
+}
+
+void Mapper::add_joint_states(const std::vector<JointState>& states) {
+  for (const JointState& q : states) add_joint_state(q);
+}
+
+Eigen::Isometry3d Mapper::T_world_cabin_estimate(double t) const { return interpolate_pose(state_, t); }
+
+void Mapper::add_sweep(const std::string& sensor, const PointCloud& cloud, double t_start, double t_end) {
+  const int s = sensor_slot(sensor);
+  if (s == 1 && !setup_.T_cabin_sensor.contains("V"))
+    throw InputError("mapping: a V sweep arrived but there is no extrinsic T_cabin_V");
+  cloud.check_consistent("sweep " + sensor);
+  if (!std::isfinite(t_start) || !std::isfinite(t_end) || t_end < t_start)
+    throw InputError("mapping: sweep " + sensor + " has an invalid time span");
+  if (state_.empty()) throw InputError("mapping: no state estimate before the first sweep");
+  ++stats_.sweeps;
+  const double period = std::max(t_end - t_start, 1e-3);
+  if (t_start - last_sweep_start_[s] > 1.5 * period + 0.02 && last_sweep_start_[s] > -1e299) {
+    ++stats_.time_gaps;
+    spdlog::warn("mapping: time gap of {:.3f} s before the {} sweep at t = {:.3f}", t_start - last_sweep_start_[s],
+                 sensor, t_start);
+  }
+  last_sweep_start_[s] = t_start;
+  if (t_end > state_.back().time + 0.05 || t_start < state_.front().time - 0.05)
+    spdlog::warn("mapping: the {} sweep at t = {:.3f} is not covered by the state estimate ({:.3f} .. {:.3f})",
+                 sensor, t_start, state_.front().time, state_.back().time);
+  if (cloud.empty()) {
+    ++stats_.empty_sweeps;
+    spdlog::warn("mapping: empty {} sweep at t = {:.3f} skipped", sensor, t_start);
+    return;
+  }
+  stats_.points_in += cloud.size();
+  Stopwatch sw;
+  Pending p{.cloud = cloud, .keep = {}, .t_start = t_start, .t_end = t_end};
+  if (config_.self_filter.enabled && joints_.empty())
+    throw InputError("mapping: no joint states for the self-filter (disable mapping.self_filter.enabled?)");
+  p.keep = self_filter(cloud, setup_.robot, joints_, setup_.T_cabin_sensor.at(sensor), config_.self_filter,
+                       0.5 * (t_start + t_end));
+  stats_.points_self_filtered += cloud.size() - p.keep.size();
+  timings_.add("self_filter", sw.lap_ms());
+
+  auto mid = [](const Pending& x) { return 0.5 * (x.t_start + x.t_end); };
+  std::optional<Pending>& mine = s == 0 ? pending_h_ : pending_v_;
+  if (mine) {  // the previous sweep of this sensor found no partner: map it alone
+    if (s == 0) process_pair(&*mine, nullptr);
+    else process_pair(nullptr, &*mine);
+    mine.reset();
+  }
+  mine = std::move(p);
+  if (!setup_.T_cabin_sensor.contains("V")) {  // single-sensor setup
+    process_pair(&*pending_h_, nullptr);
+    pending_h_.reset();
+    return;
+  }
+  if (pending_h_ && pending_v_) {
+    if (std::abs(mid(*pending_h_) - mid(*pending_v_)) <= config_.max_pair_gap) {
+      process_pair(&*pending_h_, &*pending_v_);
+      pending_h_.reset();
+      pending_v_.reset();
+    } else {  // too far apart: the older one goes alone
+      std::optional<Pending>& older = mid(*pending_h_) < mid(*pending_v_) ? pending_h_ : pending_v_;
+      if (&older == &pending_h_) process_pair(&*older, nullptr);
+      else process_pair(nullptr, &*older);
+      older.reset();
+    }
+  }
+}
+
+void Mapper::flush() {
+  if (pending_h_) process_pair(&*pending_h_, nullptr);
+  if (pending_v_) process_pair(nullptr, &*pending_v_);
+  pending_h_.reset();
+  pending_v_.reset();
+}
+
+void Mapper::process_pair(const Pending* h, const Pending* v) {
+  Stopwatch sw;
+  auto input = [&](const Pending* p, const char* sensor) {
+    return SweepInput{.cloud = &p->cloud, .keep = p->keep, .T_cabin_sensor = setup_.T_cabin_sensor.at(sensor),
+                      .t_start = p->t_start, .t_end = p->t_end};
+  };
+  std::optional<SweepInput> hi, vi;
+  if (h) hi = input(h, "H");
+  if (v) vi = input(v, "V");
+  ScanPair pair = assemble_scan_pair(hi ? &*hi : nullptr, vi ? &*vi : nullptr, T_cabin_H_, state_, config_.deskew);
+  timings_.add("assembly", sw.lap_ms());
+  ++stats_.pairs;
+  if (!h || !v) ++stats_.single_sweep_pairs;
+  const std::size_t expected = (h ? h->keep.size() : 0) + (v ? v->keep.size() : 0);
+  stats_.points_non_finite += expected - pair.cloud.size();
+  if (pair.cloud.empty()) {
+    spdlog::warn("mapping: scan pair at t = {:.3f} has no valid points", pair.time);
+    return;
+  }
+  const Eigen::Isometry3d T_raw = T_world_cabin_estimate(pair.time) * T_cabin_H_;
+  if (!nodes_.empty() &&
+      (T_raw.translation() - nodes_.back().T_world_H_raw.translation()).norm() < config_.d_poses) {
+    ++stats_.skipped_pairs;  // Table 3: d_poses
+    return;
+  }
+  add_node(std::move(pair), T_raw);
+}
+
+void Mapper::build_submap() {
+  const ScanMatchingConfig& sm = config_.scan_matching;
+  Stopwatch sw;
+  // Table 3: m — the last m scan pairs at their current estimates, relative to an anchor position
+  // (float precision far from the world origin).
+  const std::size_t last = nodes_.size() - 1;
+  const std::size_t first = nodes_.size() > std::size_t(config_.m) ? nodes_.size() - config_.m : 0;
+  Submap submap{.center = last, .time = nodes_[last].time, .T_world_center = graph_.pose(int(last)),
+                .anchor = graph_.pose(int(last)).translation().array().round().matrix(), .target = nullptr};
+  std::vector<Vec3f> merged;
+  for (std::size_t i = first; i <= last; ++i) {
+    Eigen::Isometry3d T = graph_.pose(int(i));
+    T.translation() -= submap.anchor;
+    const Eigen::Isometry3f Tf = T.cast<float>();
+    for (const Vec3f& p : nodes_[i].submap_points) merged.push_back(Tf * p);
+  }
+  merged = downsample(merged, sm.submap_voxel);
+  if (merged.size() >= std::size_t(sm.icp.min_correspondences)) {
+    submap.target = std::make_shared<const IcpTarget>(std::move(merged), NormalConfig{.k = sm.normal_k});
+    submaps_.push_back(std::move(submap));
+    ++stats_.submaps;
+  }
+  timings_.add("submap", sw.lap_ms());
+}
+
+const Mapper::Submap* Mapper::find_loop_submap(const Eigen::Isometry3d& T, double time) const {
+  const ScanMatchingConfig& sm = config_.scan_matching;
+  const Submap* best = nullptr;
+  double best_d = sm.loop_radius;
+  for (const Submap& s : submaps_) {
+    if (time - s.time < sm.loop_min_age) continue;
+    const Eigen::Isometry3d& Tc = graph_.pose(int(s.center));
+    const double d = (Tc.translation() - T.translation()).norm();
+    if (d < best_d && rotation_angle(Tc.linear().transpose() * T.linear()) < sm.loop_max_angle_deg * kDeg) {
+      best_d = d;
+      best = &s;
+    }
+  }
+  return best;
+}
+
+bool Mapper::match_scan(const std::vector<Vec3f>& source, const Eigen::Isometry3d& T_init, const Submap& submap,
+                        Eigen::Isometry3d& z, Matrix6d& information) {
+  const ScanMatchingConfig& sm = config_.scan_matching;
+  Stopwatch sw;
+  Eigen::Isometry3d T_anchor_init = T_init;
+  T_anchor_init.translation() -= submap.anchor;
+  const IcpResult r = register_icp(source, *submap.target, T_anchor_init, sm.icp);
+  timings_.add("icp", sw.lap_ms());
+  spdlog::debug("mapping: ICP {} source points, {} target points, {} iterations, fitness {:.2f}, rmse {:.3f}",
+                source.size(), submap.target->size(), r.iterations, r.fitness, r.rmse);
+  const bool ok_status = r.status == IcpStatus::converged || r.status == IcpStatus::max_iterations;
+  const Eigen::Isometry3d correction = T_anchor_init.inverse() * r.T_target_source;
+  if (!ok_status || r.fitness < sm.min_fitness || correction.translation().norm() > sm.max_correction ||
+      rotation_angle(correction.linear()) > sm.max_correction_deg * kDeg || !r.T_target_source.matrix().allFinite()) {
+    ++stats_.icp_rejected;
+    spdlog::debug("mapping: ICP rejected (status {}, fitness {:.2f}, correction {:.3f} m)", to_string(r.status),
+                  r.fitness, correction.translation().norm());
+    return false;
+  }
+  // Hessian: left perturbation in the anchor frame → right perturbation of T_world_H.
+  const Matrix6d A = adjoint(r.T_target_source);
+  const Matrix6d H = A.transpose() * r.hessian * A * (sm.info_scale / (sm.residual_sigma * sm.residual_sigma));
+  information = cap_information(H, sm.min_sigma_rotation_deg * kDeg, sm.min_sigma_translation);
+  Eigen::Isometry3d T_world_new = r.T_target_source;
+  T_world_new.translation() += submap.anchor;
+  z = submap.T_world_center.inverse() * T_world_new;
+  return true;
+}
+
+void Mapper::add_node(ScanPair pair, const Eigen::Isometry3d& T_raw) {
+  Stopwatch sw;
+  const ScanMatchingConfig& sm = config_.scan_matching;
+  Node node{.time = pair.time, .T_world_H_raw = T_raw, .map_points = {}, .submap_points = {}};
+  // Points beyond 1.5 R_map from the sensor never stay in the local map and are sparse and noisy:
+  // they are dropped before the map and the ICP see them.
+  const float max_range2 = float(std::pow(1.5 * config_.local_map.R_map, 2));
+  std::erase_if(pair.cloud.points, [&](const Vec3f& p) { return p.squaredNorm() > max_range2; });
+  pair.cloud.times.clear();
+  node.map_points = downsample(pair.cloud.points, config_.local_map.voxel.res_voxel);
+  node.submap_points = downsample(node.map_points, sm.submap_voxel);
+  const std::vector<Vec3f> source = downsample(node.submap_points, sm.source_voxel);
+  timings_.add("downsample", sw.lap_ms());
+
+  const PoseGraphConfig& g = config_.pose_graph;
+  const bool first = nodes_.empty();
+  Eigen::Isometry3d T_init = T_raw;
+  if (!first) {  // odometry: previous optimised pose + state-estimate motion since then
+    const int prev = int(nodes_.size()) - 1;
+    T_init = graph_.pose(prev) * nodes_.back().T_world_H_raw.inverse() * T_raw;
+  }
+  // Sec. 4.2, step 3: scan-to-submap ICP (+ a loop closure against an older submap of the same view).
+  struct Match {
+    std::size_t center;
+    Eigen::Isometry3d z;
+    Matrix6d info;
+    bool loop;
+  };
+  std::vector<Match> matches;
+  if (!first && sm.enabled && !submaps_.empty()) {
+    Match m{submaps_.back().center, {}, {}, false};
+    if (match_scan(source, T_init, submaps_.back(), m.z, m.info)) {
+      T_init = graph_.pose(int(m.center)) * m.z;
+      matches.push_back(m);
+    }
+    if (sm.loop_closures)
+      if (const Submap* s = find_loop_submap(T_init, node.time)) {
+        Match l{s->center, {}, {}, true};
+        if (match_scan(source, T_init, *s, l.z, l.info)) matches.push_back(l);
+      }
+  }
+  sw.lap_ms();
+
+  const int n = graph_.add_node(T_init);
+  if (!first) {
+    const Node& prev = nodes_.back();
+    const double dt = std::abs(node.time - prev.time);
+    const double st = g.odometry_sigma_translation + g.odometry_translation_rate * dt;
+    const double sr = (g.odometry_sigma_rotation_deg + g.odometry_rotation_rate_deg * dt) * kDeg;
+    graph_.add_relative(EdgeKind::odometry, n - 1, n, prev.T_world_H_raw.inverse() * T_raw,
+                        diagonal_information(Eigen::Vector3d::Constant(sr), Eigen::Vector3d::Constant(st)));
+    for (const Match& m : matches) {
+      graph_.add_relative(EdgeKind::scan_matching, int(m.center), n, m.z, m.info);
+      ++(m.loop ? stats_.loop_edges : stats_.scan_edges);
+    }
+  }
+  if (g.priors || first) {
+    const double rp = g.prior_sigma_roll_pitch_deg * kDeg;
+    graph_.add_prior(n, T_raw,
+                     diagonal_information({rp, rp, g.prior_sigma_yaw_deg * kDeg},
+                                          Eigen::Vector3d::Constant(g.prior_sigma_translation)));
+  }
+  graph_.optimize(n - g.window + 1, g.window_iterations);
+  timings_.add("pose_graph", sw.lap_ms());
+  nodes_.push_back(std::move(node));
+  ++stats_.nodes;
+  if (sm.enabled && (submaps_.empty() || nodes_.size() - 1 - submaps_.back().center >= std::size_t(sm.submap_every)))
+    build_submap();
+  sw.lap_ms();
+  update_map(nodes_.size() - 1);
+  timings_.add("map_update", sw.lap_ms());
+}
+
+void Mapper::update_map(std::size_t i) {
+  map_.insert(nodes_[i].map_points, graph_.pose(int(i)));
+  if ((i + 1) % std::size_t(config_.local_map.crop_every) == 0)
+    map_.crop((graph_.pose(int(i)) * T_cabin_H_.inverse()).translation());
+}
+
+void Mapper::rebuild_map() {
+  map_.clear();
+  auto apply_edits = [&](std::size_t after) {
+    for (const Edit& e : edits_) {
+      if (e.after_node != after) continue;
+      if (e.sphere) map_.remove_sphere(e.sphere->first, e.sphere->second);
+      else map_.insert(e.points);
+    }
+  };
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    apply_edits(i);
+    update_map(i);
+  }
+  apply_edits(nodes_.size());
+  if (!nodes_.empty()) map_.crop(current_pose().translation());
+}
+
+void Mapper::finish() {
+  flush();
+  Stopwatch sw;
+  graph_.optimize(0, config_.pose_graph.final_iterations);
+  timings_.add("final_optimisation", sw.lap_ms());
+  if (config_.rebuild_on_finish) rebuild_map();
+  timings_.add("map_rebuild", sw.lap_ms());
+}
+
+std::size_t Mapper::remove_sphere(const Vec3d& center, double radius) {
+  if (!center.allFinite() || !std::isfinite(radius) || radius < 0)
+    throw InputError("mapping: remove_sphere needs a finite centre and radius >= 0");
+  edits_.push_back({.after_node = nodes_.size(), .sphere = std::make_pair(center, radius), .points = {}});
+  return map_.remove_sphere(center, radius);
+}
+
+void Mapper::insert(const PointCloud& points) {
+  points.check_finite("mapping: inserted points");
+  edits_.push_back({.after_node = nodes_.size(), .sphere = std::nullopt, .points = points});
+  map_.insert(points);
+}
+
+std::vector<StampedPose> Mapper::trajectory() const {
+  std::vector<StampedPose> out;
+  for (std::size_t i = 0; i < nodes_.size(); ++i)
+    out.push_back({nodes_[i].time, graph_.pose(int(i)) * T_cabin_H_.inverse()});
+  return out;
+}
+
+std::vector<StampedPose> Mapper::raw_trajectory() const {
+  std::vector<StampedPose> out;
+  for (const Node& n : nodes_) out.push_back({n.time, n.T_world_H_raw * T_cabin_H_.inverse()});
+  return out;
+}
+
+Eigen::Isometry3d Mapper::current_pose() const {
+  if (nodes_.empty()) return Eigen::Isometry3d::Identity();
+  return graph_.pose(graph_.num_nodes() - 1) * T_cabin_H_.inverse();
+}
+
+MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config, const MappingProgress& progress) {
+  Stopwatch total;
+  Mapper mapper({.robot = run.robot, .T_cabin_sensor = run.T_cabin_sensor}, config);
+  mapper.add_state_estimates(run.state_estimate);
+  mapper.add_joint_states(run.joint_states);
+  if (run.scans.empty()) throw InputError("mapping: " + run.root.string() + " holds no scans");
+  const std::size_t total_pairs = (run.scans.size() + 1) / 2;
+  double read_ms = 0.0;
+  for (std::size_t k = 0; k < run.scans.size(); ++k) {
+    const io::ScanInfo& s = run.scans[k];
+    Stopwatch sw;
+    PointCloud cloud = run.read_scan(s);
+    read_ms += sw.elapsed_ms();
+    mapper.add_sweep(s.sensor, cloud, s.t_start, s.t_end);
+    if (progress && (k % 2 == 1 || k + 1 == run.scans.size())) progress((k + 1) / 2, total_pairs);
+  }
+  mapper.finish();
+  MapRunResult r;
+  Stopwatch sw;
+  r.map = mapper.map();
+  r.timings = mapper.timings();
+  r.timings.stages.insert(r.timings.stages.begin(), {"read_sweeps", read_ms});
+  r.timings.add("map_snapshot", sw.elapsed_ms());
+  r.trajectory = mapper.trajectory();
+  r.raw_trajectory = mapper.raw_trajectory();
+  r.stats = mapper.stats();
+  r.seconds = total.elapsed_ms() / 1000.0;
+  return r;
+}
+
+TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate, const std::vector<StampedPose>& truth) {
+  TrajectoryError e;
+  if (estimate.empty() || truth.empty()) return e;
+  double sum = 0, sum_rot = 0;
+  for (const StampedPose& p : estimate) {
+    const Eigen::Isometry3d T = interpolate_pose(truth, p.time);
+    const double d = (p.pose.translation() - T.translation()).norm();
+    const double a = rotation_angle(T.linear().transpose() * p.pose.linear()) * 180.0 / std::numbers::pi;
+    sum += d * d;
+    sum_rot += a * a;
+    e.ate_max = std::max(e.ate_max, d);
+    ++e.num;
+  }
+  e.ate_rmse = std::sqrt(sum / e.num);
+  for (const StampedPose& p : estimate) e.mean_error += (p.pose.translation() - interpolate_pose(truth, p.time).translation()) / double(e.num);
+  e.ate_rmse_without_mean = std::sqrt(std::max(0.0, e.ate_rmse * e.ate_rmse - e.mean_error.squaredNorm()));
+  e.rotation_rmse_deg = std::sqrt(sum_rot / e.num);
+  return e;
+}
+
+}  // namespace cairn

@@ -1,0 +1,165 @@
+#pragma once
+// The LiDAR mapping stage (Sec. 4.2), streaming: sweeps of the two LiDARs go in one at a time
+// (after the state estimate and joint states covering them), a robot-centric voxel map and the
+// optimised trajectory come out at any time.
+//
+//   add_sweep ─► self-filter ─► scan pair assembly + de-skew ─► node? (moved > d_poses)
+//              ─► scan-to-submap ICP (last m pairs) ─► pose graph (odometry, scan matching,
+//                 weak GNSS priors; windowed Ceres update) ─► local map (R_map, res_voxel)
+//
+// Graph nodes are T_world_H (the horizontal LiDAR, the frame of the assembled pairs);
+// trajectory() reports T_world_cabin = T_world_H T_cabin_H^-1.
+#include <Eigen/Geometry>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cairn/core/io/run_dir.hpp"
+#include "cairn/core/log.hpp"
+#include "cairn/core/point_cloud.hpp"
+#include "cairn/core/robot_model.hpp"
+#include "cairn/core/transform.hpp"
+#include "cairn/mapping/config.hpp"
+#include "cairn/mapping/local_map.hpp"
+#include "cairn/mapping/pose_graph.hpp"
+#include "cairn/mapping/scan_pair.hpp"
+
+namespace cairn {
+
+/// Fixed inputs of a mapping session.
+struct MapperSetup {
+  RobotModel robot;                                         // for the self-filter ("cabin" link)
+  std::map<std::string, Eigen::Isometry3d> T_cabin_sensor;  // "H" and "V" (V optional)
+};
+
+struct MapperStats {
+  std::size_t sweeps = 0, empty_sweeps = 0, pairs = 0, single_sweep_pairs = 0;
+  std::size_t nodes = 0, skipped_pairs = 0;  // skipped: moved less than d_poses
+  std::size_t scan_edges = 0, loop_edges = 0, icp_rejected = 0, submaps = 0;
+  std::size_t points_in = 0, points_self_filtered = 0, points_non_finite = 0;
+  std::size_t time_gaps = 0;  // sweeps starting > 1.5 periods after the previous one
+};
+
+class Mapper {
+ public:
+  /// Throws ConfigError on an invalid config, InputError when the H extrinsic is missing.
+  Mapper(MapperSetup setup, MappingConfig config = {});
+
+  // ---- inputs (state estimate and joint states must cover a sweep before it is added) ------
+  void add_state_estimate(const StampedPose& T_world_cabin);  // increasing times
+  void add_state_estimates(const std::vector<StampedPose>& poses);
+  void add_joint_state(const JointState& q);
+  void add_joint_states(const std::vector<JointState>& states);
+  /// One revolution of sensor "H" or "V": points in the sensor frame, absolute per-point times.
+  /// Empty sweeps are counted and skipped with a warning; NaN points are dropped. Throws
+  /// InputError on an unknown sensor or attribute arrays that do not match the points.
+  void add_sweep(const std::string& sensor, const PointCloud& cloud, double t_start, double t_end);
+  /// Processes a pending lone sweep (end of input).
+  void flush();
+  /// flush(), full optimisation, and (config.rebuild_on_finish) the map rebuilt from final poses.
+  void finish();
+
+  // ---- outputs ------------------------------------------------------------------------------
+  [[nodiscard]] PointCloud map() const { return map_.snapshot(); }
+  /// Optimised T_world_cabin of every node, by time.
+  [[nodiscard]] std::vector<StampedPose> trajectory() const;
+  /// The state estimate at the node times (what the graph started from).
+  [[nodiscard]] std::vector<StampedPose> raw_trajectory() const;
+  /// Latest optimised T_world_cabin (identity before the first node).
+  [[nodiscard]] Eigen::Isometry3d current_pose() const;
+  [[nodiscard]] const MapperStats& stats() const { return stats_; }
+  [[nodiscard]] const Timings& timings() const { return timings_; }
+  [[nodiscard]] const PoseGraph& graph() const { return graph_; }
+  [[nodiscard]] const MappingConfig& config() const { return config_; }
+
+  // ---- edits by other stages (recorded, so a rebuild replays them) ---------------------------
+  /// Removes map points within `radius` of `center` (grasped object, Sec. 5: R_obj).
+  std::size_t remove_sphere(const Vec3d& center, double radius);
+  /// Inserts world points (cloud.origin + point).
+  void insert(const PointCloud& points);
+
+ private:
+  struct Pending {
+    PointCloud cloud;
+    std::vector<std::uint32_t> keep;
+    double t_start = 0, t_end = 0;
+  };
+  struct Node {
+    double time = 0;
+    Eigen::Isometry3d T_world_H_raw;  // state estimate
+    std::vector<Vec3f> map_points;    // H frame, voxel-downsampled at res_voxel
+    std::vector<Vec3f> submap_points; // H frame, downsampled at submap_voxel
+  };
+  struct Submap {  // a prepared ICP target: the last m pairs around node `center` at build time
+    std::size_t center = 0;
+    double time = 0;
+    Eigen::Isometry3d T_world_center;  // node pose when the submap was built
+    Vec3d anchor;                      // target points are relative to this world position
+    std::shared_ptr<const IcpTarget> target;
+  };
+  struct Edit {
+    std::size_t after_node = 0;
+    std::optional<std::pair<Vec3d, double>> sphere;
+    PointCloud points;
+  };
+
+  void process_pair(const Pending* h, const Pending* v);
+  void add_node(ScanPair pair, const Eigen::Isometry3d& T_world_H_raw);
+  void build_submap();
+  /// ICP of the source against a submap; on success the relative pose z_center_new + information.
+  bool match_scan(const std::vector<Vec3f>& source, const Eigen::Isometry3d& T_init, const Submap& submap,
+                  Eigen::Isometry3d& z, Matrix6d& information);
+  [[nodiscard]] const Submap* find_loop_submap(const Eigen::Isometry3d& T_world_H, double time) const;
+  void update_map(std::size_t node);
+  void rebuild_map();
+  [[nodiscard]] Eigen::Isometry3d T_world_cabin_estimate(double t) const;
+
+  MappingConfig config_;
+  MapperSetup setup_;
+  Eigen::Isometry3d T_cabin_H_ = Eigen::Isometry3d::Identity();
+  std::vector<StampedPose> state_;
+  std::vector<JointState> joints_;
+  std::optional<Pending> pending_h_, pending_v_;
+  double last_sweep_start_[2] = {-1e300, -1e300};
+  std::vector<Node> nodes_;
+  PoseGraph graph_;
+  LocalMap map_;
+  std::vector<Edit> edits_;
+  std::vector<Submap> submaps_;  // submaps_.back() is the current one
+  MapperStats stats_;
+  Timings timings_;
+};
+
+/// Progress callback: (pairs done, pairs total).
+using MappingProgress = std::function<void(std::size_t, std::size_t)>;
+
+struct MapRunResult {
+  PointCloud map;
+  std::vector<StampedPose> trajectory;      // optimised T_world_cabin per node
+  std::vector<StampedPose> raw_trajectory;  // state estimate at the same times
+  MapperStats stats;
+  Timings timings;
+  double seconds = 0.0;
+};
+
+/// Maps a whole run directory (sweeps in time order; unreadable sweeps are InputErrors).
+[[nodiscard]] MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config = {},
+                                   const MappingProgress& progress = {});
+
+/// Trajectory error against ground truth: RMSE of the position differences at the estimate's
+/// times (truth interpolated), without alignment (the world frame is georeferenced).
+struct TrajectoryError {
+  double ate_rmse = 0.0, ate_max = 0.0;  // [m]
+  Vec3d mean_error = Vec3d::Zero();       // [m] constant part of the position error
+  double ate_rmse_without_mean = 0.0;     // [m] RMSE after removing mean_error
+  double rotation_rmse_deg = 0.0;        // [deg]
+  std::size_t num = 0;
+};
+[[nodiscard]] TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate,
+                                               const std::vector<StampedPose>& truth);
+
+}  // namespace cairn

@@ -1,0 +1,267 @@
+// Unit tests of the mapping stage's pieces on synthetic inputs with known answers.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "cairn/core/error.hpp"
+#include "cairn/mapping/local_map.hpp"
+#include "cairn/mapping/mapper.hpp"
+#include "cairn/mapping/pose_graph.hpp"
+#include "cairn/mapping/scan_pair.hpp"
+#include "cairn/mapping/self_filter.hpp"
+#include "cairn/sim/excavator.hpp"
+
+namespace cairn {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+Eigen::Isometry3d pose(double yaw, const Eigen::Vector3d& t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+// ---- self-filter ---------------------------------------------------------------------------------
+
+TEST(SelfFilter, RemovesShapeCentresKeepsTheScene) {
+  const RobotModel robot = sim::make_excavator_model(GripperConfig{});
+  JointState q;
+  q.time = 0.0;
+  q.set(sim::joints::kCabinYaw, 0.4);
+  q.set(sim::joints::kBoom, 52 * kDeg);
+  q.set(sim::joints::kStick, -132 * kDeg);
+  const std::vector<JointState> states{q};
+  const Eigen::Isometry3d T_cabin_sensor = pose(0.0, {0.95, 1.0, 2.5});
+  const int cabin = robot.link_index("cabin");
+  ASSERT_GE(cabin, 0);
+  const auto fk = robot.forward_kinematics(q);
+  const Eigen::Isometry3d T_sensor_root = (fk[cabin] * T_cabin_sensor).inverse();
+  PointCloud sweep;
+  std::size_t shapes = 0;
+  for (std::size_t l = 0; l < robot.links.size(); ++l)
+    for (const Shape& s : robot.links[l].shapes) {
+      sweep.points.push_back((T_sensor_root * fk[l] * s.T_link_shape).translation().cast<float>());
+      ++shapes;
+    }
+  // Scene points: 8 m ahead of the cabin, at ground level, and far to the side.
+  sweep.points.emplace_back(8.0f, 0.0f, -3.0f);
+  sweep.points.emplace_back(-2.0f, 12.0f, -3.5f);
+  const std::vector<std::uint32_t> kept = self_filter(sweep, robot, states, T_cabin_sensor, {});
+  ASSERT_EQ(kept.size(), 2u) << shapes << " shape centres";
+  EXPECT_EQ(kept[0], shapes);
+  EXPECT_EQ(kept[1], shapes + 1);
+  // Disabled: everything kept.
+  EXPECT_EQ(self_filter(sweep, robot, states, T_cabin_sensor, {.enabled = false}).size(), sweep.size());
+}
+
+TEST(SelfFilter, InterpolatesJointStates) {
+  JointState a, b;
+  a.time = 0.0;
+  a.set("j", 0.0);
+  b.time = 1.0;
+  b.set("j", 2.0);
+  EXPECT_NEAR(interpolate_joints({a, b}, 0.25).get("j"), 0.5, 1e-12);
+  EXPECT_NEAR(interpolate_joints({a, b}, 5.0).get("j"), 2.0, 1e-12);
+  EXPECT_THROW((void)interpolate_joints({}, 0.0), InputError);
+}
+
+// ---- scan pair assembly + de-skew -----------------------------------------------------------------
+
+struct SyntheticSweep {
+  PointCloud cloud;
+  std::vector<Vec3d> world;
+};
+
+// The cabin yaws at `rate` about the world z axis; a sensor on it sees fixed world points,
+// each at its own time within [t0, t0 + 0.1].
+SyntheticSweep make_sweep(const std::vector<StampedPose>& traj, const Eigen::Isometry3d& T_cabin_sensor, double t0,
+                          std::mt19937& rng) {
+  SyntheticSweep s;
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int i = 0; i < 2000; ++i) {
+    const double t = t0 + 0.1 * i / 2000.0;
+    const Vec3d p_world(6.0 + 3 * u(rng), 4 * u(rng), u(rng));
+    const Eigen::Isometry3d T_world_sensor = interpolate_pose(traj, t) * T_cabin_sensor;
+    s.cloud.points.push_back((T_world_sensor.inverse() * p_world).cast<float>());
+    s.cloud.times.push_back(t);
+    s.world.push_back(p_world);
+  }
+  return s;
+}
+
+TEST(ScanPair, DeskewRecoversWorldPointsOfBothSensors) {
+  std::vector<StampedPose> traj;
+  for (int k = 0; k <= 100; ++k) traj.push_back({0.01 * k, pose(0.75 * 0.01 * k, {-6.0, 0.0, 1.3})});  // 43 deg/s
+  const Eigen::Isometry3d T_cabin_H = pose(0.0, {0.95, 1.0, 2.5});
+  Eigen::Isometry3d T_cabin_V = pose(0.0, {0.95, -1.2, 2.5});
+  T_cabin_V.linear() = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  std::mt19937 rng(42);
+  const SyntheticSweep h = make_sweep(traj, T_cabin_H, 0.30, rng);
+  const SyntheticSweep v = make_sweep(traj, T_cabin_V, 0.34, rng);
+  const SweepInput hi{.cloud = &h.cloud, .keep = {}, .T_cabin_sensor = T_cabin_H, .t_start = 0.30, .t_end = 0.40};
+  const SweepInput vi{.cloud = &v.cloud, .keep = {}, .T_cabin_sensor = T_cabin_V, .t_start = 0.34, .t_end = 0.44};
+  auto max_error = [&](const DeskewConfig& cfg) {
+    const ScanPair pair = assemble_scan_pair(&hi, &vi, T_cabin_H, traj, cfg);
+    EXPECT_EQ(pair.num_h + pair.num_v, pair.cloud.size());
+    const Eigen::Isometry3d T_world_ref = interpolate_pose(traj, pair.time) * T_cabin_H;
+    double worst = 0.0;
+    for (std::size_t i = 0; i < pair.cloud.size(); ++i) {
+      const Vec3d& truth = i < h.world.size() ? h.world[i] : v.world[i - h.world.size()];
+      worst = std::max(worst, (T_world_ref * pair.cloud.points[i].cast<double>() - truth).norm());
+    }
+    return worst;
+  };
+  const double on = max_error({.enabled = true});
+  const double off = max_error({.enabled = false});
+  std::printf("[ deskew   ] max error with per-point de-skew %.4f m, one pose per sweep %.4f m\n", on, off);
+  EXPECT_LT(on, 0.005);  // slot 0.5 ms at 0.75 rad/s, ~10 m range
+  EXPECT_GT(off, 10 * on);
+}
+
+TEST(ScanPair, SkipsNonFinitePoints) {
+  std::vector<StampedPose> traj{{0.0, Eigen::Isometry3d::Identity()}, {1.0, Eigen::Isometry3d::Identity()}};
+  PointCloud c;
+  c.points = {Vec3f(1, 2, 3), Vec3f(NAN, 0, 0), Vec3f(4, 5, 6)};
+  c.times = {0.1, 0.2, NAN};
+  const SweepInput in{.cloud = &c, .keep = {}, .T_cabin_sensor = Eigen::Isometry3d::Identity(), .t_start = 0.1, .t_end = 0.2};
+  const ScanPair pair = assemble_scan_pair(&in, nullptr, Eigen::Isometry3d::Identity(), traj, {});
+  EXPECT_EQ(pair.cloud.size(), 1u);
+}
+
+// ---- pose graph ---------------------------------------------------------------------------------
+
+TEST(PoseGraph, RecoversChainFromRelativeEdgesAndAveragesBiasedPriors) {
+  std::mt19937 rng(42);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const int N = 60;
+  std::vector<Eigen::Isometry3d> truth;
+  for (int i = 0; i < N; ++i) truth.push_back(pose(0.05 * i, {std::cos(0.05 * i), std::sin(0.05 * i), 0.01 * i}));
+  PoseGraph g;
+  const Matrix6d rel = diagonal_information(Eigen::Vector3d::Constant(1e-4), Eigen::Vector3d::Constant(1e-4));
+  const Matrix6d pri = diagonal_information(Eigen::Vector3d::Constant(0.01), Eigen::Vector3d::Constant(0.05));
+  for (int i = 0; i < N; ++i) {
+    Eigen::Isometry3d noisy = truth[i];
+    noisy.translation() += 0.05 * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));
+    g.add_node(noisy);
+    g.add_prior(i, noisy, pri);
+    if (i > 0) g.add_relative(EdgeKind::odometry, i - 1, i, truth[i - 1].inverse() * truth[i], rel);
+  }
+  const PoseGraphSummary s = g.optimize(0, 50);
+  EXPECT_TRUE(s.usable);
+  EXPECT_LT(s.final_cost, s.initial_cost);
+  double before = 0, after = 0;
+  for (int i = 0; i < N; ++i) after += (g.pose(i).translation() - truth[i].translation()).squaredNorm();
+  before = 3 * 0.05 * 0.05 * N;
+  // Exact relative edges: only the mean of N independent prior errors is left (~ sigma / sqrt(N)).
+  EXPECT_LT(std::sqrt(after / N), 0.3 * std::sqrt(before / N));
+  for (int i = 1; i < N; ++i)
+    EXPECT_NEAR((g.pose(i - 1).inverse() * g.pose(i)).translation().norm(),
+                (truth[i - 1].inverse() * truth[i]).translation().norm(), 1e-3);
+}
+
+TEST(PoseGraph, WindowKeepsOldNodesFixedAndChecksInput) {
+  PoseGraph g;
+  g.add_node(Eigen::Isometry3d::Identity());
+  g.add_node(pose(0.0, {1.2, 0, 0}));
+  g.add_node(pose(0.0, {2.3, 0, 0}));
+  const Matrix6d I = Matrix6d::Identity() * 1e4;
+  g.add_relative(EdgeKind::odometry, 0, 1, pose(0.0, {1, 0, 0}), I);
+  g.add_relative(EdgeKind::scan_matching, 1, 2, pose(0.0, {1, 0, 0}), I);
+  g.optimize(2, 20);  // only node 2 free
+  EXPECT_NEAR(g.pose(1).translation().x(), 1.2, 1e-12);
+  EXPECT_NEAR(g.pose(2).translation().x(), 2.2, 1e-6);
+  g.optimize(0, 20);  // without priors node 0 stays the anchor
+  EXPECT_NEAR(g.pose(0).translation().norm(), 0.0, 1e-12);
+  EXPECT_NEAR(g.pose(2).translation().x(), 2.0, 1e-6);
+  EXPECT_THROW(g.add_relative(EdgeKind::odometry, 0, 7, Eigen::Isometry3d::Identity(), I), InputError);
+  Matrix6d bad = I;
+  bad(0, 0) = NAN;
+  EXPECT_THROW(g.add_relative(EdgeKind::odometry, 0, 1, Eigen::Isometry3d::Identity(), bad), InputError);
+}
+
+TEST(PoseGraph, InformationCapAndAdjoint) {
+  const Matrix6d H = Matrix6d::Identity() * 1e12;
+  const Matrix6d C = cap_information(H, 0.001, 0.002);
+  EXPECT_NEAR(C(0, 0), 1e6, 1e-3);
+  EXPECT_NEAR(C(5, 5), 1.0 / (0.002 * 0.002), 1e-3);
+  // exp(Ad_T ξ) T = T exp(ξ), checked to first order for a small translation twist.
+  const Eigen::Isometry3d T = pose(0.7, {1, 2, 3});
+  Eigen::Matrix<double, 6, 1> xi;
+  xi << 0, 0, 0, 1e-6, 0, 0;
+  const Eigen::Matrix<double, 6, 1> d = adjoint(T) * xi;
+  Eigen::Isometry3d right = T;
+  right.translation() += T.linear() * xi.tail<3>();
+  EXPECT_NEAR((right.translation() - (T.translation() + d.tail<3>())).norm(), 0.0, 1e-12);
+}
+
+// ---- local map ----------------------------------------------------------------------------------
+
+TEST(LocalMap, VoxelCentroidsCropRemoveInsert) {
+  LocalMap map({.R_map = 10.0});
+  PointCloud c;
+  c.origin = Vec3d(1000.0, 2000.0, 0.0);  // georeferenced
+  c.points = {Vec3f(0.001f, 0.001f, 0.001f), Vec3f(0.011f, 0.011f, 0.011f),  // same 3 cm voxel
+              Vec3f(5.0f, 0.0f, 0.0f), Vec3f(15.0f, 0.0f, 0.0f)};
+  map.insert(c);
+  EXPECT_EQ(map.num_voxels(), 3u);
+  PointCloud snap = map.snapshot();
+  ASSERT_EQ(snap.size(), 3u);
+  bool found_merged = false;
+  for (std::size_t i = 0; i < snap.size(); ++i)
+    if ((snap.world(i) - Vec3d(1000.006, 2000.006, 0.006)).norm() < 1e-4) found_merged = true;
+  EXPECT_TRUE(found_merged);
+  EXPECT_EQ(map.crop(Vec3d(1000.0, 2000.0, 50.0)), 1u);  // the point 15 m away (cylinder: z ignored)
+  EXPECT_EQ(map.remove_sphere(Vec3d(1005.0, 2000.0, 0.0), 0.5), 1u);
+  EXPECT_EQ(map.num_voxels(), 1u);
+  PointCloud more;
+  more.points = {Vec3f(1003.0f, 2000.0f, 0.0f)};
+  map.insert(more);
+  EXPECT_EQ(map.snapshot().size(), 2u);
+  LocalMap strict({.voxel = {.res_voxel = 0.03, .n_min = 2}});
+  strict.insert(c);
+  EXPECT_EQ(strict.snapshot().size(), 1u);  // only the voxel with two points
+}
+
+// ---- Mapper input checks ------------------------------------------------------------------------
+
+TEST(Mapper, BadInputGivesClearErrorsOrWarnings) {
+  const RobotModel robot = sim::make_excavator_model(GripperConfig{});
+  EXPECT_THROW(Mapper({.robot = robot, .T_cabin_sensor = {}}), InputError);
+  MappingConfig bad;
+  bad.m = 0;
+  EXPECT_THROW(Mapper({.robot = robot, .T_cabin_sensor = {{"H", Eigen::Isometry3d::Identity()}}}, bad), ConfigError);
+
+  Mapper mapper({.robot = robot, .T_cabin_sensor = {{"H", pose(0, {0.95, 1.0, 2.5})}, {"V", pose(0, {0.95, -1.2, 2.5})}}});
+  PointCloud sweep;
+  sweep.points = {Vec3f(8, 0, -3), Vec3f(NAN, 0, 0), Vec3f(8, 1, -3)};
+  sweep.times = {0.01, 0.02, 0.03};
+  EXPECT_THROW(mapper.add_sweep("H", sweep, 0.0, 0.1), InputError);  // no state estimate yet
+  for (int k = 0; k <= 300; ++k) mapper.add_state_estimate({0.01 * k, pose(0.0, {-6, 0, 1.3})});
+  mapper.add_state_estimate({1.0, pose(0.0, {NAN, 0, 0})});  // warned and skipped
+  EXPECT_THROW(mapper.add_sweep("H", sweep, 0.0, 0.1), InputError);  // no joint states
+  JointState q;
+  q.set(sim::joints::kBoom, 52 * kDeg);
+  mapper.add_joint_state(q);
+  EXPECT_THROW(mapper.add_sweep("X", sweep, 0.0, 0.1), InputError);
+  PointCloud inconsistent = sweep;
+  inconsistent.times.pop_back();
+  EXPECT_THROW(mapper.add_sweep("H", inconsistent, 0.0, 0.1), InputError);
+  mapper.add_sweep("H", PointCloud{}, 0.0, 0.1);  // empty: warning
+  mapper.add_sweep("H", sweep, 0.1, 0.2);
+  mapper.add_sweep("V", sweep, 0.12, 0.22);
+  mapper.add_sweep("H", sweep, 1.5, 1.6);  // time gap: warning
+  mapper.finish();
+  EXPECT_EQ(mapper.stats().empty_sweeps, 1u);
+  EXPECT_EQ(mapper.stats().time_gaps, 1u);
+  EXPECT_EQ(mapper.stats().pairs, 2u);
+  EXPECT_GE(mapper.stats().points_non_finite, 2u);
+  EXPECT_EQ(mapper.trajectory().size(), mapper.stats().nodes);
+  EXPECT_THROW(mapper.remove_sphere(Vec3d(NAN, 0, 0), 1.0), InputError);
+}
+
+}  // namespace
+}  // namespace cairn
