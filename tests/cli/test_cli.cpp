@@ -128,16 +128,24 @@ TEST(Cli, ConfigDumpRoundTripsThroughAFile) {
   EXPECT_DOUBLE_EQ(j["segmentation"]["ground"]["d_plane"].get<double>(), 0.10);  // Table 3
 }
 
-TEST(Cli, DemoFindsTheSevenStonesAndDrawsThem) {
+TEST(Cli, DemoSimulatesMapsAndSegmentsTheSite) {
+  // A short run (8 s: half a swing cycle, enough to see the whole front) without the drone.
   const auto dir = test::temp_dir("cli_demo");
-  const CmdResult r = run("demo --seed 2 --out " + (dir / "demo").string());
+  const auto out = dir / "demo";
+  const CmdResult r = run("demo --seed 1 --duration 8 --no-drone --out " + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  EXPECT_EQ(j["score"]["found"].get<int>(), 7);
+  // Stones seen from one side only (no drone yet): most are found whole, none is terrain.
+  EXPECT_GE(j["score"]["found"].get<int>(), 5);
   EXPECT_EQ(j["score"]["terrain_segments"].get<int>(), 0);
-  EXPECT_GT(std::filesystem::file_size(dir / "demo" / "top_view.png"), 10000u);
-  EXPECT_TRUE(std::filesystem::exists(dir / "demo" / "map.ply"));
+  EXPECT_EQ(j["stones"].get<int>(), 7);
+  EXPECT_GT(j["map_points"].get<int>(), 100000);
+  EXPECT_LT(j["ate_mapped"]["rmse_m"].get<double>(), 0.05);
+  for (const char* f : {"top_view.png", "map.ply", "trajectory.txt", "segments.json", "summary.json", "run/run.json"})
+    EXPECT_TRUE(std::filesystem::exists(out / f)) << f;
+  EXPECT_GT(std::filesystem::file_size(out / "top_view.png"), 10000u);
   EXPECT_NE(r.err.find("[4/4]"), std::string::npos);  // progress on stderr
+  EXPECT_NE(r.err.find("scan pairs"), std::string::npos);
 }
 
 TEST(Cli, SimulateWritesARunDirectory) {

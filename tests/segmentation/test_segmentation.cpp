@@ -130,3 +130,19 @@ TEST(Segmentation, BadInputIsAnError) {
   cfg.ground.method = "magic";
   EXPECT_THROW((void)segment(c, cfg), ConfigError);
 }
+
+TEST(Segmentation, TransferLabelsTakesTheNearestReferenceLabelWithinTheDistance) {
+  PointCloud reference;
+  reference.origin = Vec3d(100.0, 0.0, 0.0);  // origins differ: world coordinates are compared
+  reference.points = {Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(2, 0, 0)};
+  reference.labels = {-1, 4, 7};
+  PointCloud points;
+  points.origin = Vec3d(99.0, 0.0, 0.0);
+  points.points = {Vec3f(1.02f, 0, 0), Vec3f(2.04f, 0, 0), Vec3f(3.0f, 0.03f, 0), Vec3f(10.0f, 0, 0)};
+  const std::vector<std::int32_t> l = transfer_labels(reference, points, 0.05);
+  EXPECT_EQ(l, (std::vector<std::int32_t>{-1, 4, 7, -2}));
+  EXPECT_EQ(transfer_labels(reference, points, 0.05, -9).back(), -9);
+  PointCloud unlabelled = reference;
+  unlabelled.labels.clear();
+  EXPECT_THROW((void)transfer_labels(unlabelled, points, 0.05), InputError);
+}

@@ -3,6 +3,7 @@
 #include <map>
 
 #include "cairn/core/error.hpp"
+#include "cairn/core/kdtree.hpp"
 
 namespace cairn {
 
@@ -62,6 +63,24 @@ SegmentationScore score_segmentation(const std::vector<std::int32_t>& labels, co
     if (o.best_segment >= 0) ++owners[o.best_segment];
   for (const auto& [id, n] : owners) s.merged += n > 1;
   return s;
+}
+
+std::vector<std::int32_t> transfer_labels(const PointCloud& reference, const PointCloud& points, double max_distance,
+                                          std::int32_t unmatched) {
+  if (reference.labels.size() != reference.size())
+    throw InputError("transfer_labels: the reference cloud has no labels");
+  std::vector<std::int32_t> out(points.size(), unmatched);
+  if (reference.empty() || points.empty()) return out;
+  const KdTree tree(reference.points);
+  const Eigen::Vector3d shift = points.origin - reference.origin;  // points -> reference coordinates
+  const double max_d2 = max_distance * max_distance;
+  Neighbors nn;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3f q = (points.points[i].cast<double>() + shift).cast<float>();
+    tree.knn(q, 1, nn);
+    if (!nn.indices.empty() && double(nn.sq_dists[0]) <= max_d2) out[i] = reference.labels[nn.indices[0]];
+  }
+  return out;
 }
 
 }  // namespace cairn

@@ -4,6 +4,8 @@
 #include <nlohmann/json.hpp>
 #include <vector>
 
+#include "cairn/core/point_cloud.hpp"
+
 namespace cairn {
 
 struct ObjectScore {
@@ -32,5 +34,12 @@ struct SegmentationScore {
 [[nodiscard]] SegmentationScore score_segmentation(const std::vector<std::int32_t>& labels,
                                                    const std::vector<std::int32_t>& truth, int num_objects,
                                                    double split_fraction = 0.05);
+
+/// Ground truth for points that carry none (e.g. a map built by the mapping stage): the label of
+/// the nearest point of a labelled reference cloud (e.g. the simulator's truth/map_snapshot.ply),
+/// or `unmatched` when that point is farther than `max_distance` [m]. Both clouds in one frame
+/// (world coordinates, origins honoured).
+[[nodiscard]] std::vector<std::int32_t> transfer_labels(const PointCloud& reference, const PointCloud& points,
+                                                        double max_distance, std::int32_t unmatched = -2);
 
 }  // namespace cairn
