@@ -2,8 +2,13 @@
 // Locating the shared real data sets (../shared/data/real) from tests.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
+#include <string>
+#include <vector>
 
 namespace cairn::test {
 
@@ -17,11 +22,24 @@ inline std::filesystem::path real_data(const std::filesystem::path& relative) {
   return shared_dir() / "data" / "real" / relative;
 }
 
-/// A fresh, empty temporary directory for one test.
+/// A fresh, empty temporary directory for one test, private to this process: ctest runs the
+/// tests of one executable as parallel processes, so a shared name let one test delete the
+/// directory another was reading. Every directory handed out is removed when the process exits.
 inline std::filesystem::path temp_dir(const std::string& name) {
-  auto dir = std::filesystem::temp_directory_path() / ("cairn_test_" + name);
-  std::filesystem::remove_all(dir);
+  static std::mutex mutex;
+  static std::vector<std::filesystem::path> made;
+  auto dir = std::filesystem::temp_directory_path() /
+             ("cairn_test_" + name + "_" + std::to_string(::getpid()));
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
   std::filesystem::create_directories(dir);
+  const std::lock_guard lock(mutex);
+  if (made.empty())
+    std::atexit([] {
+      std::error_code ignored;
+      for (const auto& d : made) std::filesystem::remove_all(d, ignored);
+    });
+  made.push_back(dir);
   return dir;
 }
 

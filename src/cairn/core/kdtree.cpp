@@ -45,9 +45,8 @@ struct KdTree::Impl {
   SpanAdaptor adaptor;
   Index index;
   Impl(std::span<const Vec3f> p, int leaf)
-      : adaptor{p}, index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf))) {
-    index.buildIndex();
-  }
+      // nanoflann's constructor builds the index (a second buildIndex() would build it twice).
+      : adaptor{p}, index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf))) {}
 };
 
 KdTree::KdTree(std::span<const Vec3f> points, int leaf_size)
