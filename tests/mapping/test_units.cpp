@@ -226,6 +226,32 @@ TEST(LocalMap, VoxelCentroidsCropRemoveInsert) {
   EXPECT_EQ(strict.snapshot().size(), 1u);  // only the voxel with two points
 }
 
+// The voxel index grows (open addressing) and is rebuilt after erasing: every voxel keeps its own
+// points, erased ones are gone, and later inserts land in the surviving voxels.
+TEST(LocalMap, IndexSurvivesGrowthAndErasing) {
+  LocalMap map({.R_map = 100.0, .voxel = {.res_voxel = 0.1, .n_min = 1}, .smoothing_radius = 0.0});
+  PointCloud c;
+  const int side = 40;  // 64k voxels: several index growths
+  for (int x = 0; x < side; ++x)
+    for (int y = 0; y < side; ++y)
+      for (int z = 0; z < side; ++z) c.points.emplace_back(0.1f * x + 0.05f, 0.1f * y + 0.05f, 0.1f * z + 0.05f);
+  map.insert(c);
+  map.insert(c);  // the same voxels again: no new ones
+  ASSERT_EQ(map.num_voxels(), std::size_t(side * side * side));
+  EXPECT_EQ(map.remove_sphere(Vec3d(2.0, 2.0, 2.0), 1.0) + map.num_voxels(), std::size_t(side * side * side));
+  const std::size_t left = map.num_voxels();
+  map.insert(c);  // refills the sphere only
+  EXPECT_EQ(map.num_voxels(), std::size_t(side * side * side));
+  EXPECT_LT(left, map.num_voxels());
+  const PointCloud snap = map.snapshot();
+  ASSERT_EQ(snap.size(), map.num_voxels());
+  for (std::size_t i = 0; i < snap.size(); ++i) {  // centroids stay at the voxel centres
+    const Vec3d p = snap.world(i);
+    ASSERT_NEAR(std::fmod(p.x(), 0.1), 0.05, 1e-5);
+    ASSERT_NEAR(std::fmod(p.z(), 0.1), 0.05, 1e-5);
+  }
+}
+
 // ---- Mapper input checks ------------------------------------------------------------------------
 
 TEST(Mapper, BadInputGivesClearErrorsOrWarnings) {

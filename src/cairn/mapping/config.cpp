@@ -21,9 +21,11 @@ void MappingConfig::validate() const {
   require(scan_matching.source_voxel > 0.0, "scan_matching.source_voxel", "must be > 0");
   require(scan_matching.submap_voxel > 0.0, "scan_matching.submap_voxel", "must be > 0");
   require(scan_matching.submap_every >= 1, "scan_matching.submap_every", "must be >= 1");
+  require(scan_matching.submap_latency >= 1, "scan_matching.submap_latency", "must be >= 1");
   require(scan_matching.normal_k >= 3, "scan_matching.normal_k", "must be >= 3");
   require(scan_matching.residual_sigma > 0.0, "scan_matching.residual_sigma", "must be > 0");
   require(scan_matching.info_scale > 0.0, "scan_matching.info_scale", "must be > 0");
+  require(scan_matching.loop_info_scale > 0.0, "scan_matching.loop_info_scale", "must be > 0");
   require(scan_matching.min_sigma_translation > 0.0, "scan_matching.min_sigma_translation", "must be > 0");
   require(scan_matching.min_sigma_rotation_deg > 0.0, "scan_matching.min_sigma_rotation_deg", "must be > 0");
   scan_matching.icp.validate();

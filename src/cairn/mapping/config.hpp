@@ -33,20 +33,24 @@ struct DeskewConfig {
 struct ScanMatchingConfig {
   bool enabled = true;
   double source_voxel = 0.15;  // [m] scan pair downsampled before ICP (raw rings bias ICP)
-  double submap_voxel = 0.08;  // [m] submap downsampled before normals + kd-tree
-  int normal_k = 15;           // PCA normals of the submap
+  double submap_voxel = 0.12;  // [m] submap downsampled before normals + kd-tree
+  int normal_k = 30;           // PCA normals of the submap (fewer: noisy normals bias x/y)
   int submap_every = 5;        // nodes between submap rebuilds (a submap = the last m pairs then)
+  int submap_latency = 2;      // a submap built after node n is used from node n + latency on
+                               // (built in the background meanwhile; 1 = by the next node)
   bool loop_closures = true;   // also match against older submaps seen from the same place
   double loop_min_age = 4.0;   // [s] older than this
   double loop_radius = 0.3;    // [m] sensor positions closer than this
   double loop_max_angle_deg = 10.0;  // [deg] and orientations closer than this
   IcpConfig icp{.objective = "point_to_plane", .kernel = "huber", .kernel_scale = 0.05,
-                .max_correspondence_distance = 0.3, .max_iterations = 20};
+                .max_correspondence_distance = 0.3, .max_iterations = 10};  // from a cm-accurate guess
   double min_fitness = 0.3;         // fewer inliers per source point: no scan-matching edge
   double max_correction = 0.25;     // [m] ICP moving the initial guess farther: rejected
   double max_correction_deg = 2.0;  // [deg] likewise for the rotation
   double residual_sigma = 0.03;     // [m] information = Hessian / sigma^2 * info_scale
   double info_scale = 0.02;         // neighbouring ICP residuals are correlated: discount
+  double loop_info_scale = 0.3;     // the same for loop-closure edges (full overlap: more reliable)
+  bool sequential_edges = true;     // false: the scan-to-submap ICP only gives the initial node pose
   double min_sigma_translation = 0.002;  // [m] information capped at this standard deviation
   double min_sigma_rotation_deg = 0.02;  // [deg]
 
@@ -57,6 +61,7 @@ struct ScanMatchingConfig {
     v("submap_voxel", submap_voxel, "[m] voxel size of the submap");
     v("normal_k", normal_k, "neighbours for the submap's PCA normals");
     v("submap_every", submap_every, "nodes between submap rebuilds");
+    v("submap_latency", submap_latency, "nodes after its build until a submap is used (built in the background)");
     v("loop_closures", loop_closures, "also match each pair against an older submap seen from the same place");
     v("loop_min_age", loop_min_age, "[s] minimum age of a loop-closure submap");
     v("loop_radius", loop_radius, "[m] max. sensor distance to a loop-closure submap's pose");
@@ -67,6 +72,8 @@ struct ScanMatchingConfig {
     v("max_correction_deg", max_correction_deg, "[deg] larger ICP rotation corrections are rejected");
     v("residual_sigma", residual_sigma, "[m] residual sigma turning the ICP Hessian into information");
     v("info_scale", info_scale, "factor on the ICP information (correlated residuals)");
+    v("loop_info_scale", loop_info_scale, "factor on the ICP information of loop-closure edges");
+    v("sequential_edges", sequential_edges, "add the scan-to-submap ICP of consecutive pairs as graph edges");
     v("min_sigma_translation", min_sigma_translation, "[m] cap of the ICP information (translation)");
     v("min_sigma_rotation_deg", min_sigma_rotation_deg, "[deg] cap of the ICP information (rotation)");
   }
@@ -75,7 +82,7 @@ struct ScanMatchingConfig {
 struct PoseGraphConfig {
   // Odometry edges (state estimation between consecutive nodes): sigma = base + rate * dt.
   double odometry_sigma_translation = 0.001;   // [m]
-  double odometry_translation_rate = 0.01;     // [m/s]
+  double odometry_translation_rate = 0.03;     // [m/s] GNSS error velocity (~2 cm/s, smooth)
   double odometry_sigma_rotation_deg = 0.01;   // [deg]
   double odometry_rotation_rate_deg = 0.05;    // [deg/s]
   // Absolute priors (GNSS/INS state estimate) on every node: weak, their errors are correlated.

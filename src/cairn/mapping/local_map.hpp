@@ -6,7 +6,7 @@
 // R_obj) and insertions add points (e.g. a placed stone's model).
 #include <cstdint>
 #include <span>
-#include <unordered_map>
+#include <vector>
 
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/mapping/config.hpp"
@@ -43,14 +43,23 @@ class LocalMap {
   struct Voxel {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // relative to origin_
     std::uint32_t count = 0;
+    std::uint64_t key = 0;
   };
   [[nodiscard]] std::uint64_t key_of(const Eigen::Vector3d& p_rel) const;
   void add(const Eigen::Vector3d& p_world);
+  /// Keeps the voxels for which keep(centroid_world) holds; returns how many were dropped.
+  template <class Keep>
+  std::size_t filter(Keep keep);
+  void rebuild_index(std::size_t capacity);
 
   LocalMapConfig config_;
   bool has_origin_ = false;
   Vec3d origin_ = Vec3d::Zero();
-  std::unordered_map<std::uint64_t, Voxel> voxels_;
+  // Voxels stored densely; an open-addressing index (linear probing, power-of-two size, at most
+  // half full) maps a key to its position. Erasing (crop, remove_sphere) compacts and re-indexes.
+  std::vector<Voxel> voxels_;
+  std::vector<std::uint64_t> index_keys_;
+  std::vector<std::uint32_t> index_pos_;
 };
 
 }  // namespace cairn

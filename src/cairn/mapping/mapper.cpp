@@ -6,6 +6,8 @@
 #include <cmath>
 #include <numbers>
 
+#include <tbb/task_group.h>
+
 #include "cairn/core/error.hpp"
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/mapping/self_filter.hpp"
@@ -161,7 +163,7 @@ void Mapper::process_pair(const Pending* h, const Pending* v) {
   add_node(std::move(pair), T_raw);
 }
 
-void Mapper::build_submap() {
+void Mapper::start_submap() {
   const ScanMatchingConfig& sm = config_.scan_matching;
   Stopwatch sw;
   // Table 3: m — the last m scan pairs at their current estimates, relative to an anchor position
@@ -177,13 +179,37 @@ void Mapper::build_submap() {
     const Eigen::Isometry3f Tf = T.cast<float>();
     for (const Vec3f& p : nodes_[i].submap_points) merged.push_back(Tf * p);
   }
-  merged = downsample(merged, sm.submap_voxel);
-  if (merged.size() >= std::size_t(sm.icp.min_correspondences)) {
-    submap.target = std::make_shared<const IcpTarget>(std::move(merged), NormalConfig{.k = sm.normal_k});
-    submaps_.push_back(std::move(submap));
-    ++stats_.submaps;
+  next_submap_ = std::move(submap);
+  next_submap_due_ = nodes_.size() - 1 + std::size_t(sm.submap_latency);
+  const double gather_ms = sw.elapsed_ms();
+  submap_task_->run([this, merged = std::move(merged), gather_ms] {
+    Stopwatch bw;
+    const ScanMatchingConfig& c = config_.scan_matching;
+    std::vector<Vec3f> points = downsample(merged, c.submap_voxel);
+    if (points.size() >= std::size_t(c.icp.min_correspondences))
+      next_submap_->target = std::make_shared<const IcpTarget>(std::move(points), NormalConfig{.k = c.normal_k});
+    background_submap_ms_ = gather_ms + bw.elapsed_ms();
+  });
+}
+
+void Mapper::sync_background(bool all) {
+  background_->wait();
+  if (background_map_ms_ > 0.0) timings_.add("map_update", background_map_ms_);
+  background_map_ms_ = 0.0;
+  if (next_submap_ && (all || nodes_.size() >= next_submap_due_)) {
+    submap_task_->wait();
+    if (next_submap_->target) {
+      submaps_.push_back(std::move(*next_submap_));
+      ++stats_.submaps;
+    }
+    next_submap_.reset();
+    timings_.add("submap", background_submap_ms_);
   }
-  timings_.add("submap", sw.lap_ms());
+}
+
+Mapper::~Mapper() {
+  background_->wait();
+  submap_task_->wait();
 }
 
 const Mapper::Submap* Mapper::find_loop_submap(const Eigen::Isometry3d& T, double time) const {
@@ -202,33 +228,35 @@ const Mapper::Submap* Mapper::find_loop_submap(const Eigen::Isometry3d& T, doubl
   return best;
 }
 
-bool Mapper::match_scan(const std::vector<Vec3f>& source, const Eigen::Isometry3d& T_init, const Submap& submap,
-                        Eigen::Isometry3d& z, Matrix6d& information) {
+Mapper::Match Mapper::match_scan(const std::vector<Vec3f>& source, const Eigen::Isometry3d& T_init,
+                                 const Submap& submap, bool loop) const {
   const ScanMatchingConfig& sm = config_.scan_matching;
   Stopwatch sw;
+  Match m{.center = submap.center, .loop = loop};
   Eigen::Isometry3d T_anchor_init = T_init;
   T_anchor_init.translation() -= submap.anchor;
   const IcpResult r = register_icp(source, *submap.target, T_anchor_init, sm.icp);
-  timings_.add("icp", sw.lap_ms());
+  m.ms = sw.elapsed_ms();
   spdlog::debug("mapping: ICP {} source points, {} target points, {} iterations, fitness {:.2f}, rmse {:.3f}",
                 source.size(), submap.target->size(), r.iterations, r.fitness, r.rmse);
   const bool ok_status = r.status == IcpStatus::converged || r.status == IcpStatus::max_iterations;
   const Eigen::Isometry3d correction = T_anchor_init.inverse() * r.T_target_source;
   if (!ok_status || r.fitness < sm.min_fitness || correction.translation().norm() > sm.max_correction ||
       rotation_angle(correction.linear()) > sm.max_correction_deg * kDeg || !r.T_target_source.matrix().allFinite()) {
-    ++stats_.icp_rejected;
     spdlog::debug("mapping: ICP rejected (status {}, fitness {:.2f}, correction {:.3f} m)", to_string(r.status),
                   r.fitness, correction.translation().norm());
-    return false;
+    return m;
   }
   // Hessian: left perturbation in the anchor frame → right perturbation of T_world_H.
+  const double info_scale = loop ? sm.loop_info_scale : sm.info_scale;
   const Matrix6d A = adjoint(r.T_target_source);
-  const Matrix6d H = A.transpose() * r.hessian * A * (sm.info_scale / (sm.residual_sigma * sm.residual_sigma));
-  information = cap_information(H, sm.min_sigma_rotation_deg * kDeg, sm.min_sigma_translation);
+  const Matrix6d H = A.transpose() * r.hessian * A * (info_scale / (sm.residual_sigma * sm.residual_sigma));
+  m.information = cap_information(H, sm.min_sigma_rotation_deg * kDeg, sm.min_sigma_translation);
   Eigen::Isometry3d T_world_new = r.T_target_source;
   T_world_new.translation() += submap.anchor;
-  z = submap.T_world_center.inverse() * T_world_new;
-  return true;
+  m.z = submap.T_world_center.inverse() * T_world_new;
+  m.ok = true;
+  return m;
 }
 
 void Mapper::add_node(ScanPair pair, const Eigen::Isometry3d& T_raw) {
@@ -244,6 +272,8 @@ void Mapper::add_node(ScanPair pair, const Eigen::Isometry3d& T_raw) {
   node.submap_points = downsample(node.map_points, sm.submap_voxel);
   const std::vector<Vec3f> source = downsample(node.submap_points, sm.source_voxel);
   timings_.add("downsample", sw.lap_ms());
+  sync_background(false);  // the previous node's map update, the submap when it is due
+  sw.lap_ms();
 
   const PoseGraphConfig& g = config_.pose_graph;
   const bool first = nodes_.empty();
@@ -252,27 +282,23 @@ void Mapper::add_node(ScanPair pair, const Eigen::Isometry3d& T_raw) {
     const int prev = int(nodes_.size()) - 1;
     T_init = graph_.pose(prev) * nodes_.back().T_world_H_raw.inverse() * T_raw;
   }
-  // Sec. 4.2, step 3: scan-to-submap ICP (+ a loop closure against an older submap of the same view).
-  struct Match {
-    std::size_t center;
-    Eigen::Isometry3d z;
-    Matrix6d info;
-    bool loop;
-  };
-  std::vector<Match> matches;
+  // Sec. 4.2, step 3: scan-to-submap ICP + a loop closure against an older submap of the same
+  // view, both from the odometry guess, concurrently.
+  Match seq, loop;
   if (!first && sm.enabled && !submaps_.empty()) {
-    Match m{submaps_.back().center, {}, {}, false};
-    if (match_scan(source, T_init, submaps_.back(), m.z, m.info)) {
-      T_init = graph_.pose(int(m.center)) * m.z;
-      matches.push_back(m);
-    }
-    if (sm.loop_closures)
-      if (const Submap* s = find_loop_submap(T_init, node.time)) {
-        Match l{s->center, {}, {}, true};
-        if (match_scan(source, T_init, *s, l.z, l.info)) matches.push_back(l);
+    const Submap* loop_submap = sm.loop_closures ? find_loop_submap(T_init, node.time) : nullptr;
+    tbb::task_group icps;
+    if (loop_submap) icps.run([&] { loop = match_scan(source, T_init, *loop_submap, true); });
+    seq = match_scan(source, T_init, submaps_.back(), false);
+    icps.wait();
+    for (const Match* m : {&seq, &loop})
+      if (m->ms > 0.0) {
+        timings_.add("icp", m->ms);
+        if (!m->ok) ++stats_.icp_rejected;
       }
+    if (seq.ok) T_init = graph_.pose(int(seq.center)) * seq.z;
   }
-  sw.lap_ms();
+  timings_.add("icp_wall", sw.lap_ms());
 
   const int n = graph_.add_node(T_init);
   if (!first) {
@@ -282,9 +308,13 @@ void Mapper::add_node(ScanPair pair, const Eigen::Isometry3d& T_raw) {
     const double sr = (g.odometry_sigma_rotation_deg + g.odometry_rotation_rate_deg * dt) * kDeg;
     graph_.add_relative(EdgeKind::odometry, n - 1, n, prev.T_world_H_raw.inverse() * T_raw,
                         diagonal_information(Eigen::Vector3d::Constant(sr), Eigen::Vector3d::Constant(st)));
-    for (const Match& m : matches) {
-      graph_.add_relative(EdgeKind::scan_matching, int(m.center), n, m.z, m.info);
-      ++(m.loop ? stats_.loop_edges : stats_.scan_edges);
+    if (seq.ok && sm.sequential_edges) {
+      graph_.add_relative(EdgeKind::scan_matching, int(seq.center), n, seq.z, seq.information);
+      ++stats_.scan_edges;
+    }
+    if (loop.ok) {
+      graph_.add_relative(EdgeKind::scan_matching, int(loop.center), n, loop.z, loop.information);
+      ++stats_.loop_edges;
     }
   }
   if (g.priors || first) {
@@ -297,11 +327,20 @@ void Mapper::add_node(ScanPair pair, const Eigen::Isometry3d& T_raw) {
   timings_.add("pose_graph", sw.lap_ms());
   nodes_.push_back(std::move(node));
   ++stats_.nodes;
-  if (sm.enabled && (submaps_.empty() || nodes_.size() - 1 - submaps_.back().center >= std::size_t(sm.submap_every)))
-    build_submap();
-  sw.lap_ms();
-  update_map(nodes_.size() - 1);
-  timings_.add("map_update", sw.lap_ms());
+  // Map update and submap build overlap with the assembly of the next pair (the other core).
+  background_->run([this] {
+    Stopwatch bw;
+    update_map(nodes_.size() - 1);
+    background_map_ms_ = bw.elapsed_ms();
+  });
+  const std::size_t last_center = next_submap_ ? next_submap_->center
+                                  : submaps_.empty()  ? 0
+                                                      : submaps_.back().center;
+  const bool no_submap = submaps_.empty() && !next_submap_;
+  if (sm.enabled && (no_submap || nodes_.size() - 1 - last_center >= std::size_t(sm.submap_every))) {
+    if (next_submap_) sync_background(true);  // still building (latency > submap_every)
+    start_submap();
+  }
 }
 
 void Mapper::update_map(std::size_t i) {
@@ -329,6 +368,7 @@ void Mapper::rebuild_map() {
 
 void Mapper::finish() {
   flush();
+  sync_background(true);
   Stopwatch sw;
   graph_.optimize(0, config_.pose_graph.final_iterations);
   timings_.add("final_optimisation", sw.lap_ms());
@@ -339,12 +379,14 @@ void Mapper::finish() {
 std::size_t Mapper::remove_sphere(const Vec3d& center, double radius) {
   if (!center.allFinite() || !std::isfinite(radius) || radius < 0)
     throw InputError("mapping: remove_sphere needs a finite centre and radius >= 0");
+  sync_background(true);
   edits_.push_back({.after_node = nodes_.size(), .sphere = std::make_pair(center, radius), .points = {}});
   return map_.remove_sphere(center, radius);
 }
 
 void Mapper::insert(const PointCloud& points) {
   points.check_finite("mapping: inserted points");
+  sync_background(true);
   edits_.push_back({.after_node = nodes_.size(), .sphere = std::nullopt, .points = points});
   map_.insert(points);
 }
@@ -383,8 +425,10 @@ MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config, c
     mapper.add_sweep(s.sensor, cloud, s.t_start, s.t_end);
     if (progress && (k % 2 == 1 || k + 1 == run.scans.size())) progress((k + 1) / 2, total_pairs);
   }
+  const double online_seconds = total.elapsed_ms() / 1000.0;
   mapper.finish();
   MapRunResult r;
+  r.online_seconds = online_seconds;
   Stopwatch sw;
   r.map = mapper.map();
   r.timings = mapper.timings();

@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include <tbb/task_group.h>
+
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/log.hpp"
 #include "cairn/core/point_cloud.hpp"
@@ -48,6 +50,9 @@ class Mapper {
  public:
   /// Throws ConfigError on an invalid config, InputError when the H extrinsic is missing.
   Mapper(MapperSetup setup, MappingConfig config = {});
+  ~Mapper();
+  Mapper(const Mapper&) = delete;
+  Mapper& operator=(const Mapper&) = delete;
 
   // ---- inputs (state estimate and joint states must cover a sweep before it is added) ------
   void add_state_estimate(const StampedPose& T_world_cabin);  // increasing times
@@ -64,7 +69,10 @@ class Mapper {
   void finish();
 
   // ---- outputs ------------------------------------------------------------------------------
-  [[nodiscard]] PointCloud map() const { return map_.snapshot(); }
+  [[nodiscard]] PointCloud map() const {
+    background_->wait();  // the last node's map update
+    return map_.snapshot();
+  }
   /// Optimised T_world_cabin of every node, by time.
   [[nodiscard]] std::vector<StampedPose> trajectory() const;
   /// The state estimate at the node times (what the graph started from).
@@ -109,10 +117,22 @@ class Mapper {
 
   void process_pair(const Pending* h, const Pending* v);
   void add_node(ScanPair pair, const Eigen::Isometry3d& T_world_H_raw);
-  void build_submap();
+  /// Starts building a submap from the last m nodes: the points are gathered here, the voxel
+  /// filter, normals and kd-tree are built in the background (used from node `due` on).
+  void start_submap();
+  struct Match {
+    std::size_t center = 0;
+    bool loop = false;
+    bool ok = false;  // accepted: z + information are set
+    Eigen::Isometry3d z = Eigen::Isometry3d::Identity();  // T_center_new
+    Matrix6d information = Matrix6d::Zero();
+    double ms = 0.0;
+  };
   /// ICP of the source against a submap; on success the relative pose z_center_new + information.
-  bool match_scan(const std::vector<Vec3f>& source, const Eigen::Isometry3d& T_init, const Submap& submap,
-                  Eigen::Isometry3d& z, Matrix6d& information);
+  [[nodiscard]] Match match_scan(const std::vector<Vec3f>& source, const Eigen::Isometry3d& T_init,
+                                 const Submap& submap, bool loop) const;
+  /// Waits for the previous node's map update and, once it is due (or `all`), the pending submap.
+  void sync_background(bool all);
   [[nodiscard]] const Submap* find_loop_submap(const Eigen::Isometry3d& T_world_H, double time) const;
   void update_map(std::size_t node);
   void rebuild_map();
@@ -132,6 +152,13 @@ class Mapper {
   std::vector<Submap> submaps_;  // submaps_.back() is the current one
   MapperStats stats_;
   Timings timings_;
+  // The previous node's map update and submap build run here while the next pair is assembled
+  // (deterministic: everything that reads their results waits first).
+  std::unique_ptr<tbb::task_group> background_ = std::make_unique<tbb::task_group>();
+  std::unique_ptr<tbb::task_group> submap_task_ = std::make_unique<tbb::task_group>();
+  std::optional<Submap> next_submap_;  // being built; used from node next_submap_due_ on
+  std::size_t next_submap_due_ = 0;
+  double background_map_ms_ = 0.0, background_submap_ms_ = 0.0;
 };
 
 /// Progress callback: (pairs done, pairs total).
@@ -144,6 +171,7 @@ struct MapRunResult {
   MapperStats stats;
   Timings timings;
   double seconds = 0.0;
+  double online_seconds = 0.0;  // streaming part only (reading sweeps .. last node), without finish()
 };
 
 /// Maps a whole run directory (sweeps in time order; unreadable sweeps are InputErrors).
