@@ -35,7 +35,7 @@ struct VerticalityConfig {
   bool enabled = true;
   double column_size = 0.05;       // xy column edge [m]
   double column_height = 0.12;     // a column is stacked when its z spread exceeds this [m]
-  double min_stacked_fraction = 0.1;
+  double min_stacked_fraction = 0.03;
 
   template <class V>
   void visit(V& v) {
