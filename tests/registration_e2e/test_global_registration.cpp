@@ -97,6 +97,20 @@ TEST(GlobalRegistration, DroneCloudAfterScaleRecoveryLandsOnTheLidarMap) {
   EXPECT_GE(r.matched_segments.size(), 5u);
   EXPECT_EQ(r.merged_segments.size(), r.matched_segments.size());
   EXPECT_GT(r.merged_map.size(), f.map.size());
+  // The registered scene's objects (merged pairs + segments only one cloud holds): every stone is
+  // exactly one object holding >= 95 % of its points (the paper's protocol criterion).
+  PointCloud objects;
+  std::vector<std::int32_t> object_of;
+  objects.origin = f.map.origin;
+  for (std::size_t k = 0; k < r.objects.size(); ++k)
+    for (std::size_t i = 0; i < r.objects[k].cloud.size(); ++i) {
+      objects.points.push_back((r.objects[k].cloud.world(i) - objects.origin).cast<float>());
+      object_of.push_back(std::int32_t(k));
+    }
+  const PointCloud snapshot = io::load_cloud(f.run_dir / "truth" / "map_snapshot.ply");
+  const SegmentationScore score = score_segmentation(object_of, transfer_labels(snapshot, objects, 0.06), 7);
+  EXPECT_EQ(score.found(0.95), 7u) << score.to_json().dump();
+  EXPECT_EQ(score.terrain_segments, 0u);
   for (const char* stage : {"segmentation_source", "segmentation_target", "keypoints", "descriptors", "matching",
                             "verification", "refinement"})
     EXPECT_GT(r.timings.get(stage), 0.0) << stage;

@@ -204,6 +204,7 @@ void GlobalRegistrationConfig::validate() const {
   if (acceptance.min_matched_segments < 1)
     throw ConfigError("registration.acceptance.min_matched_segments must be at least 1");
   if (!(merge_voxel > 0.0)) throw ConfigError("registration.merge_voxel must be positive");
+  if (!(absorb_distance >= 0.0)) throw ConfigError("registration.absorb_distance must be >= 0");
   if (!(levelling.plane_distance > 0.0 && levelling.refit_band > 0.0 && levelling.sign_cell > 0.0))
     throw ConfigError("registration.levelling distances must be positive");
   if (!(levelling.min_share >= 0.0 && levelling.min_share <= 1.0))
@@ -302,7 +303,10 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
   for (Vec3f& p : levelled.points) p = Rf * p;
   r.source_points = levelled.size();
   r.target_points = target.size();
-  r.source_segmentation = segment(levelled, segmentation);
+  SegmentationConfig source_segmentation = segmentation;
+  if (cfg.source_min_stacked_fraction >= 0.0)
+    source_segmentation.verticality.min_stacked_fraction = cfg.source_min_stacked_fraction;
+  r.source_segmentation = segment(levelled, source_segmentation);
   t.add("segmentation_source", sw.lap_ms());
   r.target_segmentation = segment(target, segmentation);
   t.add("segmentation_target", sw.lap_ms());
@@ -372,6 +376,7 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     rep.centroid_inliers = verified[k].inliers;
     rep.max_centroid_distance = verified[k].max_distance;
     rep.T_target_source = candidates[k].T_target_source;
+    rep.T_world = to_world(rep.T_target_source);
     r.reports.push_back(rep);
   }
   t.add("verification", sw.lap_ms());
@@ -416,16 +421,17 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     const Verification after = verify_centroids(src, tgt, T, cfg.d_match);
     rep.refined = true;
     rep.T_target_source = T;
+    rep.T_world = to_world(T);
     rep.rmse = o.rmse;
     rep.overlap = o.share;
     rep.icp_rmse = r2.rmse;
     rep.accepted = o.rmse < cfg.acceptance.e_icp && o.share >= cfg.acceptance.min_overlap &&
                    after.inliers >= cfg.acceptance.min_matched_segments;
-    if (rep.accepted) {
+    if (rep.accepted && !accepted) {
       accepted = rank;
       accepted_pairs = after;
-      break;
     }
+    if (accepted && !cfg.refine_all) break;
   }
   t.add("refinement", sw.lap_ms());
 
@@ -458,7 +464,59 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     for (std::uint32_t i : tgt.members[std::size_t(ti)]) merged.points.push_back(tgt.points[i]);
     for (std::uint32_t i : src.members[std::size_t(si)]) merged.points.push_back(Tf * src.points[i]);
     r.merged_segments.push_back(voxel_downsample(merged, merge_voxel));
+    r.objects.push_back({r.merged_segments.back(), src.ids[std::size_t(si)], tgt.ids[std::size_t(ti)]});
   }
+  // Segments without a match: a piece of a stone that one cloud split off (the LiDAR sees a
+  // stone in two parts, one matched) joins the merged object it touches after alignment; the
+  // others stay objects of their own (e.g. a stone only the drone saw so far).
+  std::vector<bool> src_used(src.ids.size(), false), tgt_used(tgt.ids.size(), false);
+  for (const auto& [si, ti] : accepted_pairs.pairs) {
+    src_used[std::size_t(si)] = true;
+    tgt_used[std::size_t(ti)] = true;
+  }
+  std::vector<Vec3f> merged_points;
+  std::vector<std::uint32_t> merged_owner;
+  for (std::size_t k = 0; k < r.merged_segments.size(); ++k)
+    for (const Vec3f& p : r.merged_segments[k].points) {
+      merged_points.push_back(p);
+      merged_owner.push_back(std::uint32_t(k));
+    }
+  const KdTree merged_tree(merged_points);
+  const float absorb = float(cfg.absorb_distance);
+  const auto place = [&](std::vector<Vec3f> pts, std::int32_t source_id, std::int32_t target_id) {
+    std::vector<std::size_t> contacts(r.merged_segments.size(), 0);
+    for (const Vec3f& p : pts)
+      if (!merged_points.empty()) {
+        float d2 = 0.0f;
+        const std::uint32_t n = merged_tree.nearest(p, &d2);
+        if (d2 < absorb * absorb) ++contacts[merged_owner[n]];
+      }
+    const auto best = std::max_element(contacts.begin(), contacts.end());
+    if (best != contacts.end() && *best >= cfg.absorb_min_points) {
+      PointCloud& obj = r.objects[std::size_t(best - contacts.begin())].cloud;
+      obj.points.insert(obj.points.end(), pts.begin(), pts.end());
+      return;
+    }
+    GlobalRegistrationResult::Object o{.cloud = {}, .source_segment = source_id, .target_segment = target_id};
+    o.cloud.origin = target.origin;
+    o.cloud.points = std::move(pts);
+    r.objects.push_back(std::move(o));
+  };
+  for (std::size_t k = 0; k < src.ids.size(); ++k) {
+    if (src_used[k]) continue;
+    std::vector<Vec3f> pts;
+    for (std::uint32_t i : src.members[k]) pts.push_back(Tf * src.points[i]);
+    place(std::move(pts), src.ids[k], -1);
+  }
+  for (std::size_t k = 0; k < tgt.ids.size(); ++k) {
+    if (tgt_used[k]) continue;
+    std::vector<Vec3f> pts;
+    for (std::uint32_t i : tgt.members[k]) pts.push_back(tgt.points[i]);
+    place(std::move(pts), -1, tgt.ids[k]);
+  }
+  for (std::size_t k = 0; k < r.merged_segments.size(); ++k)
+    if (r.objects[k].cloud.size() != r.merged_segments[k].size())
+      r.objects[k].cloud = voxel_downsample(r.objects[k].cloud, merge_voxel);
   PointCloud all;
   all.origin = target.origin;
   all.points = target.points;
