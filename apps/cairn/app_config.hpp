@@ -8,6 +8,8 @@
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/mapping/config.hpp"
+#include "cairn/registration/global_registration.hpp"
+#include "cairn/registration/scale_recovery.hpp"
 #include "cairn/segmentation/segmenter.hpp"
 #include "cairn/sim/simulation.hpp"
 
@@ -18,6 +20,8 @@ struct AppConfig {
   NormalConfig normals;
   SegmentationConfig segmentation;
   MappingConfig mapping;
+  ScaleRecoveryConfig scale;
+  GlobalRegistrationConfig registration;
   sim::SimulationConfig simulation;  // generic defaults; `cairn simulate` starts from its scenario
 
   template <class V>
@@ -26,6 +30,8 @@ struct AppConfig {
     v("normals", normals, "PCA normal estimation");
     v("segmentation", segmentation, "map segmentation (Sec. 4.3)");
     v("mapping", mapping, "LiDAR mapping (Sec. 4.2)");
+    v("scale", scale, "metric scale of the drone SfM model from camera positions (Sec. 4.1)");
+    v("registration", registration, "segment-based global registration (Sec. 4.4)");
     v("simulation", simulation, "simulator: site, excavator, LiDARs, state estimation, drone");
   }
 };

@@ -1,8 +1,9 @@
 // cairn demo: the main job on the built-in simulated site, the whole chain that exists today:
 // simulate a scenario (exp1: seven stones of 0.5–1 m³ in front of the swinging excavator, two
-// VLP-16s, GNSS/IMU state estimate, drone survey) → LiDAR mapping online (Sec. 4.2) → segment the
-// map (Sec. 4.3) → score against the simulator's ground truth. Writes the run directory, the map,
-// the trajectory, the segments and a top view with the stones coloured; prints per-stage figures.
+// VLP-16s, GNSS/IMU state estimate, drone survey) → LiDAR mapping online (Sec. 4.2) → drone cloud
+// scaled (Sec. 4.1) and registered into the map (Sec. 4.4) → segment the merged map (Sec. 4.3) →
+// score against the simulator's ground truth. Writes the run directory, the map, the trajectory,
+// the segments and a top view with the stones coloured; prints per-stage figures.
 #include <spdlog/spdlog.h>
 
 #include <fstream>
@@ -18,6 +19,7 @@
 #include "cairn/segmentation/output.hpp"
 #include "cairn/sim/simulation.hpp"
 #include "commands.hpp"
+#include "sim_registration.hpp"
 
 namespace cairn::app {
 namespace {
@@ -61,7 +63,7 @@ int run_demo(const DemoArgs& a) {
   Timings t;
   Stopwatch sw;
 
-  spdlog::info("demo [1/4] simulating scenario {} (seed {}, {} s of cabin swinging) -> {}", a.scenario, a.seed,
+  spdlog::info("demo [1/5] simulating scenario {} (seed {}, {} s of cabin swinging) -> {}", a.scenario, a.seed,
                a.duration, run_dir.string());
   std::size_t last_decile = 11;
   const sim::SimulationSummary s = sim::simulate_run(
@@ -78,7 +80,7 @@ int run_demo(const DemoArgs& a) {
   t.add("simulate", sw.lap_ms());
 
   const io::RunDirectory rd = io::open_run_directory(run_dir);
-  spdlog::info("demo [2/4] mapping {} sweeps online (Sec. 4.2)", rd.scans.size());
+  spdlog::info("demo [2/5] mapping {} sweeps online (Sec. 4.2)", rd.scans.size());
   std::size_t last = 0;
   const MapRunResult mapped = map_run(rd, cfg.mapping, [&last](std::size_t done, std::size_t total) {
     if (done == total || done >= last + 50) {
@@ -94,22 +96,62 @@ int run_demo(const DemoArgs& a) {
   spdlog::info("demo       ATE raw state estimate {:.2f} cm -> mapped {:.2f} cm ({} nodes, {} map points)",
                100 * ate_raw.ate_rmse, 100 * ate_mapped.ate_rmse, mapped.stats.nodes, map.size());
 
-  spdlog::info("demo [3/4] segmenting the {}-point map (Sec. 4.3)", map.size());
-  const SegmentationResult seg = segment(map, cfg.segmentation);
+  // 3. Registration of the drone cloud into the map (when the run has a drone survey).
+  nlohmann::json registration = "skipped (no drone survey)";
+  PointCloud merged = map;
+  if (!rd.drone_cloud.empty()) {
+    spdlog::info("demo [3/5] registering the drone cloud into the map (scale Sec. 4.1, segments Sec. 4.4)");
+    const MetricDrone drone = load_metric_drone(rd, cfg.scale);
+    t.add("scale_recovery", sw.lap_ms());
+    const RegistrationTruth reg_truth = load_registration_truth(rd, int(cfg.simulation.site.stones.count));
+    sw.lap_ms();
+    const GlobalRegistrationResult r = register_global(drone.cloud, map, cfg.segmentation, cfg.registration);
+    t.add("registration", sw.lap_ms());
+    r.timings.log("demo   registration:");
+    const ScoredRegistration scored = score_registration(r, drone, reg_truth);
+    registration = scored.to_json();
+    registration["scale"] = drone.scale.T_metric_sfm.scale;
+    registration["scale_error"] = drone.scale_error;
+    registration["rmse_m"] = r.rmse;
+    registration["overlap"] = r.overlap;
+    registration["matched_segments"] = r.matched_segments.size();
+    nlohmann::json rt;
+    for (const auto& [name, ms] : r.timings.stages) rt[name] = ms;
+    registration["timings_ms"] = rt;
+    if (!r.success) registration["reason"] = r.reason;
+    if (r.success) {
+      merged = r.merged_map;
+      PointCloud aligned = r.source_voxelised;
+      transform_cloud(aligned, r.T_target_source);
+      io::write_ply(out / "drone_aligned.ply", aligned);
+      spdlog::info("demo       drone cloud registered: {:.3f} deg, {:.1f} mm from the truth, rmse {:.1f} mm, {} "
+                   "segments matched, {}/{} stones single objects",
+                   scored.error.rotation_deg, 1000 * scored.error.translation_m, 1000 * r.rmse,
+                   r.matched_segments.size(), scored.single_stones, reg_truth.num_stones);
+    } else {
+      spdlog::warn("demo       registration refused: {} (the map is segmented alone)", r.reason);
+    }
+    t.add("write_registration", sw.lap_ms());
+  }
+
+  spdlog::info("demo [4/5] segmenting the {}-point {} (Sec. 4.3)", merged.size(),
+               merged.size() == map.size() ? "map" : "merged map");
+  const SegmentationResult seg = segment(merged, cfg.segmentation);
   t.add("segmentation", sw.lap_ms());
   seg.timings.log("demo   segmentation:");
 
-  spdlog::info("demo [4/4] scoring against ground truth and writing {}", a.out);
+  spdlog::info("demo [5/5] scoring against ground truth and writing {}", a.out);
   const PointCloud snapshot = io::load_cloud(rd.truth_dir() / "map_snapshot.ply");
-  const std::vector<std::int32_t> truth = transfer_labels(snapshot, map, kTruthTransferDistance);
+  const std::vector<std::int32_t> truth = transfer_labels(snapshot, merged, kTruthTransferDistance);
   const int num_stones = int(cfg.simulation.site.stones.count);
   const SegmentationScore score = score_segmentation(seg.labels, truth, num_stones);
-  write_segmentation(out, map, seg, seg.labels);
+  write_segmentation(out, merged, seg, seg.labels);
   io::write_ply(out / "map.ply", map);
+  if (merged.size() != map.size()) io::write_ply(out / "merged_map.ply", merged);
   write_trajectory(out / "trajectory.txt", mapped.trajectory);
-  std::vector<Rgb> colors(map.size());
-  for (std::size_t i = 0; i < map.size(); ++i) colors[i] = label_color(seg.labels[i]);
-  write_png(out / "top_view.png", render_top_view(map, colors, kTopViewPixelsPerMetre));
+  std::vector<Rgb> colors(merged.size());
+  for (std::size_t i = 0; i < merged.size(); ++i) colors[i] = label_color(seg.labels[i]);
+  write_png(out / "top_view.png", render_top_view(merged, colors, kTopViewPixelsPerMetre));
   t.add("write", sw.lap_ms());
 
   nlohmann::json timings;
@@ -131,7 +173,8 @@ int run_demo(const DemoArgs& a) {
                          {"ate_mapped", ate_json(ate_mapped)},
                          {"segments", seg.num_objects()},
                          {"score", score.to_json()},
-                         {"registration", "not yet (issue #5)"},
+                         {"registration", registration},
+                         {"segmented_points", merged.size()},
                          {"timings_ms", timings},
                          {"mapping_timings_ms", mapping_timings},
                          {"out", a.out}};
@@ -147,8 +190,8 @@ int run_demo(const DemoArgs& a) {
 void add_demo_command(CLI::App& app, std::function<int()>& run) {
   auto args = std::make_shared<DemoArgs>();
   auto* cmd = app.add_subcommand("demo",
-                                 "The main job on the built-in simulated site: simulate, map (Sec. 4.2), segment "
-                                 "(Sec. 4.3), score against ground truth");
+                                 "The main job on the built-in simulated site: simulate, map (Sec. 4.2), register the "
+                                 "drone cloud (Sec. 4.1, 4.4), segment (Sec. 4.3), score against ground truth");
   std::string names;
   for (const auto& n : sim::scenario_names()) names.append(names.empty() ? "" : ", ").append(n);
   cmd->add_option("--out", args->out, "output directory (the run directory goes to OUT/run)")->capture_default_str();

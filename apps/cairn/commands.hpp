@@ -10,5 +10,8 @@ void add_info_command(CLI::App& app, std::function<int()>& run);
 void add_demo_command(CLI::App& app, std::function<int()>& run);
 void add_simulate_command(CLI::App& app, std::function<int()>& run);
 void add_map_command(CLI::App& app, std::function<int()>& run);
+void add_scale_command(CLI::App& app, std::function<int()>& run);
+void add_register_command(CLI::App& app, std::function<int()>& run);
+void add_protocol_command(CLI::App& app, std::function<int()>& run);
 void add_grasp_trial_command(CLI::App& app, std::function<int()>& run);  // needs MuJoCo
 }  // namespace cairn::app

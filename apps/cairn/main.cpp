@@ -19,6 +19,9 @@ int main(int argc, char** argv) {
   app::add_demo_command(app, run);
   app::add_simulate_command(app, run);
   app::add_map_command(app, run);
+  app::add_scale_command(app, run);
+  app::add_register_command(app, run);
+  app::add_protocol_command(app, run);
 #ifdef CAIRN_WITH_PHYSICS
   app::add_grasp_trial_command(app, run);
 #endif

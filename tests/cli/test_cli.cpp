@@ -61,6 +61,79 @@ std::filesystem::path small_scene(const std::filesystem::path& dir, bool with_na
   return f;
 }
 
+TEST(Cli, ScaleAndRegisterFollowTheContract) {
+  const auto dir = test::temp_dir("cli_register");
+  const auto run_dir = dir / "run";
+  ASSERT_EQ(run("simulate --scenario exp1 --seed 1 --duration 8 --out " + run_dir.string()).code, 0);
+  const auto map = dir / "map.ply";
+  ASSERT_EQ(run("map " + run_dir.string() + " --out " + map.string()).code, 0);
+  const std::string drone = (run_dir / "drone" / "cloud.ply").string();
+  const std::string sfm = " --sfm " + (run_dir / "drone" / "sparse").string() + " --metric " +
+                          (run_dir / "drone" / "vins_trajectory.tum").string();
+
+  // cairn scale: the similarity from the SfM frame to the metric one, applied to the cloud.
+  const auto scaled = dir / "drone_metric.ply";
+  const CmdResult s = run("scale" + sfm + " --cloud " + drone + " --out " + scaled.string());
+  ASSERT_EQ(s.code, 0) << s.err;
+  const auto sj = nlohmann::json::parse(s.out);
+  std::ifstream truth_file(run_dir / "truth" / "drone.json");
+  const double true_scale = nlohmann::json::parse(truth_file)["scale_map_per_sfm_unit"].get<double>();
+  EXPECT_NEAR(sj["scale"].get<double>() / true_scale, 1.0, 2e-3);
+  EXPECT_LT(sj["rms_m"].get<double>(), 0.1);
+  EXPECT_TRUE(std::filesystem::exists(scaled));
+
+  // cairn register with scale recovery: the JSON contract, errors against the truth, the files.
+  const auto out = dir / "reg";
+  const CmdResult r = run("register " + drone + " " + map.string() + sfm + " --truth " +
+                          (run_dir / "truth" / "drone.json").string() + " --out " + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["success"].get<bool>());
+  EXPECT_EQ(j["T_target_source"].size(), 4u);
+  EXPECT_LT(j["rmse"].get<double>(), 0.03);
+  EXPECT_GE(j["matched_segments"].get<int>(), 5);
+  EXPECT_GT(j["candidates"].get<int>(), 0);
+  for (const char* stage : {"segmentation_source", "segmentation_target", "keypoints", "descriptors", "matching",
+                            "verification", "refinement", "total"})
+    EXPECT_TRUE(j["timings_ms"].contains(stage)) << stage;
+  EXPECT_LT(j["error"]["rotation_deg"].get<double>(), 1.0);
+  EXPECT_LT(j["error"]["translation_m"].get<double>(), 0.06);
+  EXPECT_NEAR(j["error"]["scale_ratio"].get<double>(), 1.0, 2e-3);
+  for (const char* f : {"merged.ply", "merged_segments.json", "source_aligned.ply", "result.json"})
+    EXPECT_TRUE(std::filesystem::exists(out / f)) << f;
+
+  // The same cloud without scale recovery (SfM scale): no transform passes -> exit 3, a reason.
+  const CmdResult unscaled = run("register " + drone + " " + map.string());
+  EXPECT_EQ(unscaled.code, 3) << unscaled.err;
+  const auto uj = nlohmann::json::parse(unscaled.out);
+  EXPECT_FALSE(uj["success"].get<bool>());
+  EXPECT_FALSE(uj["reason"].get<std::string>().empty());
+
+  // Bad input: exit 2 naming the problem.
+  const CmdResult missing = run("register " + (dir / "none.ply").string() + " " + map.string());
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("none.ply"), std::string::npos) << missing.err;
+  const CmdResult half = run("register " + drone + " " + map.string() + " --sfm " + (run_dir / "drone" / "sparse").string());
+  EXPECT_EQ(half.code, 2);
+  EXPECT_NE(half.err.find("--metric"), std::string::npos) << half.err;
+}
+
+TEST(Cli, ProtocolRegistersWhileMapping) {
+  const auto dir = test::temp_dir("cli_protocol");
+  const CmdResult r = run("protocol --seeds 1 --first-seed 3 --duration 10 --every 5 --out " + dir.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["all"]["trials"].get<int>(), 2);
+  EXPECT_EQ(j["all"]["false_positives"].get<int>(), 0);
+  // After 10 s of swinging the map covers the stones: the second trial succeeds.
+  EXPECT_GE(j["all"]["success"].get<int>(), 1);
+  EXPECT_FALSE(j["time_to_first_success_s"][0].is_null());
+  EXPECT_LE(j["time_to_first_success_s"][0].get<double>(), 10.0);
+  EXPECT_TRUE(std::filesystem::exists(dir / "protocol.json"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "trials.png"));
+  EXPECT_NE(r.err.find("t = 10.0 s"), std::string::npos);  // progress on stderr
+}
+
 }  // namespace
 
 TEST(Cli, SegmentWritesTheContractFiles) {
@@ -128,24 +201,43 @@ TEST(Cli, ConfigDumpRoundTripsThroughAFile) {
   EXPECT_DOUBLE_EQ(j["segmentation"]["ground"]["d_plane"].get<double>(), 0.10);  // Table 3
 }
 
-TEST(Cli, DemoSimulatesMapsAndSegmentsTheSite) {
-  // A short run (8 s: half a swing cycle, enough to see the whole front) without the drone.
+TEST(Cli, DemoSimulatesMapsRegistersAndSegmentsTheSite) {
+  // A short run (8 s: half a swing cycle, enough to see the whole front) with the drone survey.
   const auto dir = test::temp_dir("cli_demo");
   const auto out = dir / "demo";
-  const CmdResult r = run("demo --seed 1 --duration 8 --no-drone --out " + out.string());
+  const CmdResult r = run("demo --seed 1 --duration 8 --out " + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  // Stones seen from one side only (no drone yet): most are found whole, none is terrain.
+  // The drone cloud lands on the map (the map's own georeferencing error is ~2 cm).
+  const auto& reg = j["registration"];
+  ASSERT_TRUE(reg["accepted"].get<bool>()) << reg.dump();
+  EXPECT_LT(reg["rotation_error_deg"].get<double>(), 1.0);
+  EXPECT_LT(reg["translation_error_m"].get<double>(), 0.06);
+  EXPECT_LT(std::abs(reg["scale_error"].get<double>()), 2e-3);
+  EXPECT_GE(reg["matched_segments"].get<int>(), 5);
+  // Segmenting the merged map (LiDAR sides + drone tops): most stones whole, none is terrain.
   EXPECT_GE(j["score"]["found"].get<int>(), 5);
   EXPECT_EQ(j["score"]["terrain_segments"].get<int>(), 0);
   EXPECT_EQ(j["stones"].get<int>(), 7);
   EXPECT_GT(j["map_points"].get<int>(), 100000);
+  EXPECT_GT(j["segmented_points"].get<int>(), j["map_points"].get<int>());
   EXPECT_LT(j["ate_mapped"]["rmse_m"].get<double>(), 0.05);
-  for (const char* f : {"top_view.png", "map.ply", "trajectory.txt", "segments.json", "summary.json", "run/run.json"})
+  for (const char* f : {"top_view.png", "map.ply", "merged_map.ply", "drone_aligned.ply", "trajectory.txt",
+                        "segments.json", "summary.json", "run/run.json"})
     EXPECT_TRUE(std::filesystem::exists(out / f)) << f;
   EXPECT_GT(std::filesystem::file_size(out / "top_view.png"), 10000u);
-  EXPECT_NE(r.err.find("[4/4]"), std::string::npos);  // progress on stderr
+  EXPECT_NE(r.err.find("[5/5]"), std::string::npos);  // progress on stderr
   EXPECT_NE(r.err.find("scan pairs"), std::string::npos);
+}
+
+TEST(Cli, DemoWithoutDroneSegmentsTheMapAlone) {
+  const auto dir = test::temp_dir("cli_demo_no_drone");
+  const CmdResult r = run("demo --seed 2 --duration 4 --no-drone --out " + (dir / "demo").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["registration"].is_string());  // "skipped (no drone survey)"
+  EXPECT_EQ(j["segmented_points"].get<int>(), j["map_points"].get<int>());
+  EXPECT_GE(j["segments"].get<int>(), 3);
 }
 
 TEST(Cli, SimulateWritesARunDirectory) {

@@ -1,0 +1,46 @@
+#pragma once
+// Registration of a simulator run's drone cloud into a LiDAR map, scored against the run's truth:
+// shared by `cairn demo` and `cairn protocol`.
+#include <nlohmann/json.hpp>
+
+#include "cairn/core/io/run_dir.hpp"
+#include "cairn/registration/global_registration.hpp"
+#include "cairn/registration/scale_recovery.hpp"
+
+namespace cairn::app {
+
+/// The drone cloud of a run, scaled into the metric (VINS) frame by scale recovery (Sec. 4.1),
+/// and the true map-from-metric similarity (truth/drone.json composed with the recovered scale).
+struct MetricDrone {
+  PointCloud cloud;
+  ScaleRecoveryResult scale;
+  Similarity T_map_metric_true;
+  double scale_error = 0.0;  // T_map_metric_true.scale - 1 (what scale recovery missed)
+};
+/// Throws InputError when the run has no drone survey.
+[[nodiscard]] MetricDrone load_metric_drone(const io::RunDirectory& run, const ScaleRecoveryConfig& config);
+
+/// Truth of a run for scoring registrations: the labelled dense snapshot and the site centre.
+struct RegistrationTruth {
+  PointCloud snapshot;  // truth/map_snapshot.ply (labels: stone index, -1 terrain)
+  int num_stones = 0;
+  Vec3d site_centre = Vec3d::Zero();  // mean of the stones' points: where the error is measured
+};
+[[nodiscard]] RegistrationTruth load_registration_truth(const io::RunDirectory& run, int num_stones);
+
+/// One registration scored as in the paper's protocol: accepted (RMSE < e_icp over the overlap),
+/// every stone a single object of the registered scene (GlobalRegistrationResult::objects: the
+/// merged pairs plus the segments only one cloud holds), and the error against the truth.
+struct ScoredRegistration {
+  bool accepted = false;
+  std::size_t single_stones = 0;  // stones that are exactly one object (>= 95 % of their points in it)
+  bool every_stone_single = false;
+  bool success = false;           // accepted && every_stone_single
+  RegistrationError error;
+  nlohmann::json objects_score;   // per-stone completeness and purity over the objects
+  [[nodiscard]] nlohmann::json to_json() const;
+};
+[[nodiscard]] ScoredRegistration score_registration(const GlobalRegistrationResult& r, const MetricDrone& drone,
+                                                    const RegistrationTruth& truth);
+
+}  // namespace cairn::app
