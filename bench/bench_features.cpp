@@ -33,34 +33,17 @@
 #include "cairn/registration/consistency_grouping.hpp"
 #include "support/feature_data.hpp"
 #include "support/site_segments.hpp"
+#include "support/pcl_convert.hpp"
 
 using namespace cairn;
 
 namespace {
 
+using test::to_pcl;
+using test::to_pcl_normals;
+
 using CloudXYZ = pcl::PointCloud<pcl::PointXYZ>;
 using Descriptors = pcl::PointCloud<pcl::SHOT352>;
-
-CloudXYZ::Ptr to_pcl(std::span<const Vec3f> pts) {
-  auto c = pcl::make_shared<CloudXYZ>();
-  c->reserve(pts.size());
-  for (const auto& p : pts) c->push_back({p.x(), p.y(), p.z()});
-  return c;
-}
-
-pcl::PointCloud<pcl::Normal>::Ptr to_pcl_normals(std::span<const Vec3f> normals) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  for (const auto& n : normals) {
-    pcl::Normal q;
-    if (n.isZero(0.0f))
-      q.normal_x = q.normal_y = q.normal_z = nan;
-    else
-      q.getNormalVector3fMap() = n;
-    c->push_back(q);
-  }
-  return c;
-}
 
 /// One cloud prepared for both libraries.
 struct Set {

@@ -79,10 +79,13 @@
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/registration/scale_recovery.hpp"
 #include "cairn/sim/simulation.hpp"
+#include "support/pcl_convert.hpp"
 
 using namespace cairn;
 
 namespace {
+
+using test::to_pcl;
 
 namespace fs = std::filesystem;
 
@@ -225,13 +228,6 @@ void BM_Cairn_RegisterGlobal(benchmark::State& state) {
 using CloudXYZ = pcl::PointCloud<pcl::PointXYZ>;
 using Normals = pcl::PointCloud<pcl::Normal>;
 using Descriptors = pcl::PointCloud<pcl::SHOT352>;
-
-CloudXYZ::Ptr to_pcl(std::span<const Vec3f> pts) {
-  auto c = pcl::make_shared<CloudXYZ>();
-  c->reserve(pts.size());
-  for (const auto& p : pts) c->push_back({p.x(), p.y(), p.z()});
-  return c;
-}
 
 CloudXYZ::Ptr pcl_iss(const CloudXYZ::Ptr& cloud, const IssConfig& iss) {
   pcl::ISSKeypoint3D<pcl::PointXYZ, pcl::PointXYZ> est;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cairn/core/point_cloud.hpp"
+#include "support/registration_scenes.hpp"  // transformed(), make_pose()
 
 namespace cairn::test {
 
@@ -49,27 +50,11 @@ inline std::vector<Vec3f> bumpy_surface(std::size_t n, std::uint32_t seed, float
   return out;
 }
 
-inline std::vector<Vec3f> transformed(const std::vector<Vec3f>& pts, const Eigen::Isometry3d& T) {
-  std::vector<Vec3f> out;
-  out.reserve(pts.size());
-  for (const auto& p : pts) out.push_back((T * p.cast<double>()).cast<float>());
-  return out;
-}
-
 inline std::vector<Vec3f> rotated(const std::vector<Vec3f>& v, const Eigen::Matrix3d& R) {
   std::vector<Vec3f> out;
   out.reserve(v.size());
   for (const auto& n : v) out.push_back((R * n.cast<double>()).cast<float>());
   return out;
-}
-
-inline Eigen::Isometry3d make_pose(double rx, double ry, double rz, const Eigen::Vector3d& t) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = (Eigen::AngleAxisd(rz, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(rx, Eigen::Vector3d::UnitX()))
-                   .toRotationMatrix();
-  T.translation() = t;
-  return T;
 }
 
 }  // namespace cairn::test

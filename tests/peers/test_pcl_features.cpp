@@ -25,6 +25,7 @@
 #include "cairn/features/shot.hpp"
 #include "cairn/registration/consistency_grouping.hpp"
 #include "support/feature_data.hpp"
+#include "support/pcl_convert.hpp"
 #include "support/site_segments.hpp"
 #include "support/test_data.hpp"
 
@@ -32,30 +33,10 @@ using namespace cairn;
 
 namespace {
 
+using test::to_pcl;
+using test::to_pcl_normals;
+
 using CloudXYZ = pcl::PointCloud<pcl::PointXYZ>;
-
-CloudXYZ::Ptr to_pcl(std::span<const Vec3f> pts) {
-  auto c = pcl::make_shared<CloudXYZ>();
-  c->reserve(pts.size());
-  for (const auto& p : pts) c->push_back({p.x(), p.y(), p.z()});
-  return c;
-}
-
-/// cairn's "no normal" (zero vector) is PCL's NaN normal.
-pcl::PointCloud<pcl::Normal>::Ptr to_pcl_normals(std::span<const Vec3f> normals) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
-  c->reserve(normals.size());
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  for (const auto& n : normals) {
-    pcl::Normal q;
-    if (n.isZero(0.0f))
-      q.normal_x = q.normal_y = q.normal_z = nan;
-    else
-      q.getNormalVector3fMap() = n;
-    c->push_back(q);
-  }
-  return c;
-}
 
 std::vector<std::uint32_t> pcl_iss(std::span<const Vec3f> points, const IssConfig& cfg) {
   auto cloud = to_pcl(points);
