@@ -70,9 +70,10 @@ double median(std::vector<double> v) {
 void draw_acceptance(const std::filesystem::path& file, const std::vector<RefinedCandidate>& candidates,
                      const RegistrationAcceptanceConfig& acc) {
   Image img(kPlotSize, kPlotSize, {255, 255, 255});
-  const auto px = [](double overlap) { return std::clamp(int(overlap * (kPlotSize - 1)), 0, kPlotSize - 1); };
+  // Clamped in double first: an RMSE without overlapping points is +inf.
+  const auto px = [](double overlap) { return int(std::clamp(overlap, 0.0, 1.0) * (kPlotSize - 1)); };
   const auto py = [](double rmse) {
-    return std::clamp(kPlotSize - 1 - int(rmse / kPlotMaxRmse * (kPlotSize - 1)), 0, kPlotSize - 1);
+    return kPlotSize - 1 - int(std::clamp(rmse / kPlotMaxRmse, 0.0, 1.0) * (kPlotSize - 1));
   };
   for (int y = 0; y < kPlotSize; ++y) img.at(px(acc.min_overlap), y) = {150, 150, 150};  // acceptance lines
   for (int x = 0; x < kPlotSize; ++x) img.at(x, py(acc.e_icp)) = {150, 150, 150};

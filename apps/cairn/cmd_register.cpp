@@ -96,11 +96,14 @@ int run_register(const RegisterArgs& a) {
   }
   if (!a.out.empty()) {
     const std::filesystem::path out(a.out);
+    // Files of an earlier run in DIR must not stand beside this run's result.
+    for (const char* stale : {"source_aligned.ply", "merged.ply", "merged_segments.json", "segments"})
+      std::filesystem::remove_all(out / stale);
     std::filesystem::create_directories(out / "segments");
-    PointCloud aligned = r.source_voxelised;
-    transform_cloud(aligned, r.T_target_source);
-    io::write_ply(out / "source_aligned.ply", aligned);
     if (r.success) {
+      PointCloud aligned = r.source_voxelised;
+      transform_cloud(aligned, r.T_target_source);
+      io::write_ply(out / "source_aligned.ply", aligned);
       io::write_ply(out / "merged.ply", r.merged_map);
       nlohmann::json segs = nlohmann::json::array();
       for (std::size_t k = 0; k < r.merged_segments.size(); ++k) {
@@ -115,7 +118,9 @@ int run_register(const RegisterArgs& a) {
       }
       std::ofstream(out / "merged_segments.json") << segs.dump(2) << "\n";
     }
-    std::ofstream(out / "result.json") << j.dump(2) << "\n";
+    std::ofstream result(out / "result.json");
+    result << j.dump(2) << "\n";
+    if (!result) throw InputError("register: cannot write " + (out / "result.json").string());
   }
   r.timings.log("register:");
   spdlog::info("register: {} ({} candidates, {} matched segments, rmse {:.4f} m, overlap {:.2f})",

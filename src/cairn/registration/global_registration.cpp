@@ -282,6 +282,8 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
   cfg.validate();
   if (source.empty()) throw InputError("registration: the source cloud is empty");
   if (target.empty()) throw InputError("registration: the target cloud is empty");
+  source.check_finite("registration source");
+  target.check_finite("registration target");
   GlobalRegistrationResult r;
   Timings& t = r.timings;
   Stopwatch sw;
@@ -436,11 +438,12 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
   t.add("refinement", sw.lap_ms());
 
   if (!accepted) {
-    r.reason = r.candidates == 0 ? "no geometrically consistent group of correspondences"
-               : refined == 0    ? "no candidate matches " + std::to_string(cfg.acceptance.min_matched_segments) +
-                                    " segment centroids within d_match"
-                                 : "no refined candidate passes the acceptance test";
-    if (!r.reports.empty()) {
+    r.reason = refined > 0 ? "no refined candidate passes the acceptance test"
+               : r.candidates + r.centroid_candidates == 0
+                   ? "no geometrically consistent group of correspondences and no centroid hypothesis"
+                   : "no candidate matches " + std::to_string(cfg.acceptance.min_matched_segments) +
+                         " segment centroids within d_match";
+    if (!r.reports.empty() && r.reports.front().refined) {  // else rmse/overlap stay unmeasured (0)
       r.rmse = r.reports.front().rmse;
       r.overlap = r.reports.front().overlap;
     }
@@ -491,9 +494,9 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
         const std::uint32_t n = merged_tree.nearest(p, &d2);
         if (d2 < absorb * absorb) ++contacts[merged_owner[n]];
       }
-    const auto best = std::max_element(contacts.begin(), contacts.end());
-    if (best != contacts.end() && *best >= cfg.absorb_min_points) {
-      PointCloud& obj = r.objects[std::size_t(best - contacts.begin())].cloud;
+    const auto most = std::max_element(contacts.begin(), contacts.end());
+    if (most != contacts.end() && *most >= cfg.absorb_min_points) {
+      PointCloud& obj = r.objects[std::size_t(most - contacts.begin())].cloud;
       obj.points.insert(obj.points.end(), pts.begin(), pts.end());
       return;
     }
