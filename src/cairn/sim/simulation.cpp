@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -80,6 +81,11 @@ Similarity read_drone_truth(const fs::path& run) {
 std::vector<std::string> scenario_names() { return {"exp1", "exp2", "pile"}; }
 
 fs::path default_real_mesh_dir() {
+  // $CAIRN_SHARED_DIR (the shared/ folder, as the tests honour it) wins over the build-time path.
+  if (const char* shared = std::getenv("CAIRN_SHARED_DIR")) {
+    const fs::path dir = fs::path(shared) / "data" / "real" / "epfl-stone-models";
+    if (fs::is_directory(dir)) return dir;
+  }
   const fs::path dir(CAIRN_DEFAULT_REAL_MESH_DIR);
   return (!dir.empty() && fs::is_directory(dir)) ? dir : fs::path{};
 }

@@ -59,7 +59,8 @@ std::vector<std::string> scenario_names();
 /// scenario's real stones are procedural instead (a warning says so).
 SimulationConfig scenario_config(const std::string& name, const std::filesystem::path& real_mesh_dir);
 
-/// Directory of the real stone meshes next to the checkout (compile-time default), if present.
+/// Directory of the real stone meshes: $CAIRN_SHARED_DIR/data/real/epfl-stone-models if set and
+/// present, else the one next to the checkout (compile-time default), if present.
 std::filesystem::path default_real_mesh_dir();
 
 struct SimulationSummary {
