@@ -290,3 +290,25 @@ TEST(Cli, MapWritesAMapAndATrajectory) {
   EXPECT_EQ(bad_set.code, 2);
   EXPECT_NE(bad_set.err.find("mapping.m"), std::string::npos) << bad_set.err;
 }
+
+TEST(Cli, RegisterIndoorFragmentsWithThePreset) {
+  // config/indoor_fragments.yaml: descriptor-only registration of two real 3DMatch fragments.
+  CAIRN_REQUIRE_REAL_DATA("geotransformer-3dmatch-demo/src.xyz");
+  const std::string d = test::real_data("geotransformer-3dmatch-demo").string();
+  const std::string preset = std::string(CAIRN_SOURCE_DIR) + "/config/indoor_fragments.yaml";
+  const CmdResult r = run("register " + d + "/src.xyz " + d + "/ref.xyz --config " + preset);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["success"].get<bool>());
+  EXPECT_EQ(j["matched_segments"].get<int>(), 0);
+  Eigen::Matrix3d R;
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) R(a, b) = j["T_target_source"][a][b].get<double>();
+  // gt.npy's rotation (tests/registration/test_real_3dmatch.cpp checks the full pose).
+  Eigen::Matrix3d R_gt;
+  R_gt << 0.955871, -0.153547, 0.250322, 0.174607, 0.982516, -0.064088, -0.236119, 0.104974, 0.966004;
+  EXPECT_LT(Eigen::AngleAxisd(R * R_gt.transpose()).angle(), 2.0 * M_PI / 180.0);
+  // Without the preset (Table 3 radii, segments on): nothing to segment indoors -> exit 3.
+  const CmdResult plain = run("register " + d + "/src.xyz " + d + "/ref.xyz");
+  EXPECT_EQ(plain.code, 3) << plain.err;
+}

@@ -55,11 +55,15 @@ SegmentSet collect_segments(std::span<const Vec3f> points, const SegmentationRes
   return s;
 }
 
-void describe(SegmentSet& s, const GlobalRegistrationConfig& cfg, Timings& t, const std::string& which) {
+/// Normals, ISS keypoints and SHOT descriptors of the set. Normals point away from their
+/// segment's centroid (consistent between sensors that see an object from different sides) when
+/// `outward`, else towards cfg.normals' viewpoint.
+void describe(SegmentSet& s, const GlobalRegistrationConfig& cfg, Timings& t, const std::string& which,
+              bool outward = true) {
   Stopwatch sw;
   s.tree = std::make_unique<KdTree>(s.points);
   NormalResult nr = estimate_normals(s.points, *s.tree, cfg.normals);
-  for (std::size_t i = 0; i < s.points.size(); ++i) {  // outward: consistent between sensors
+  for (std::size_t i = 0; outward && i < s.points.size(); ++i) {
     Vec3f& n = nr.normals[i];
     if (n.dot(s.points[i] - s.centroids[std::size_t(s.segment_of[i])]) < 0.0f) n = -n;
   }
@@ -189,6 +193,130 @@ std::vector<std::pair<Eigen::Isometry3d, Verification>> centroid_candidates(cons
 
 double tilt(const Eigen::Isometry3d& T) { return std::acos(std::clamp((T.linear() * Vec3d::UnitZ()).z(), -1.0, 1.0)); }
 
+/// The whole cloud as one set (segments = false).
+SegmentSet whole_cloud(std::span<const Vec3f> points) {
+  SegmentSet s;
+  s.points.assign(points.begin(), points.end());
+  s.segment_of.assign(points.size(), 0);
+  s.ids.push_back(-1);
+  s.members.emplace_back(points.size());
+  std::iota(s.members.back().begin(), s.members.back().end(), std::uint32_t{0});
+  Vec3d c = Vec3d::Zero();
+  for (const Vec3f& p : points) c += p.cast<double>();
+  s.centroids.push_back((c / double(std::max<std::size_t>(1, points.size()))).cast<float>());
+  return s;
+}
+
+/// Descriptor-only registration of the whole clouds (config.segments = false): ISS + SHOT on
+/// everything, consistency grouping, ICP from each of the max_refinements most-voted distinct
+/// candidates, the accepted one with the largest mutual overlap wins.
+GlobalRegistrationResult register_whole(const PointCloud& source, const PointCloud& target,
+                                        const GlobalRegistrationConfig& cfg) {
+  GlobalRegistrationResult r;
+  Timings& t = r.timings;
+  Stopwatch sw;
+  r.source_voxelised = voxel_downsample(source, cfg.source_voxel);
+  r.source_points = r.source_voxelised.size();
+  r.target_points = target.size();
+  t.add("segmentation_source", 0.0);
+  t.add("segmentation_target", 0.0);
+  SegmentSet src = whole_cloud(r.source_voxelised.points), tgt = whole_cloud(target.points);
+  sw.lap_ms();
+  Timings inner;
+  describe(src, cfg, inner, "source", false);
+  describe(tgt, cfg, inner, "target", false);
+  r.source_keypoints = src.keypoints.size();
+  r.target_keypoints = tgt.keypoints.size();
+  t.add("keypoints", inner.get("keypoints_source") + inner.get("keypoints_target"));
+  t.add("descriptors", inner.get("descriptors_source") + inner.get("descriptors_target"));
+  sw.lap_ms();
+  const std::vector<Correspondence> matches = match_descriptors(src.descriptors, tgt.descriptors, cfg.matching);
+  r.correspondences = matches.size();
+  t.add("matching", sw.lap_ms());
+  std::vector<Vec3f> src_kp, tgt_kp;
+  for (std::uint32_t i : src.keypoints) src_kp.push_back(src.points[i]);
+  for (std::uint32_t i : tgt.keypoints) tgt_kp.push_back(tgt.points[i]);
+  std::vector<TransformCandidate> candidates = geometric_consistency_grouping(src_kp, tgt_kp, matches, cfg.grouping);
+  if (cfg.gravity_aligned)
+    std::erase_if(candidates, [&](const TransformCandidate& c) { return tilt(c.T_target_source) > cfg.max_tilt_deg * kDegToRad; });
+  r.candidates = candidates.size();
+  const auto to_world = [&](const Eigen::Isometry3d& T_local) {
+    Eigen::Isometry3d T = Eigen::Translation3d(target.origin) * T_local;
+    T.translation() -= T.linear() * source.origin;
+    return T;
+  };
+  for (const TransformCandidate& c : candidates) {
+    CandidateReport rep;
+    rep.votes = c.votes;
+    rep.T_target_source = c.T_target_source;
+    rep.T_world = to_world(c.T_target_source);
+    r.reports.push_back(rep);
+  }
+  t.add("verification", sw.lap_ms());
+
+  IcpConfig icp = cfg.icp;
+  icp.four_dof = cfg.gravity_aligned || cfg.icp.four_dof;
+  const IcpTarget icp_target(tgt.points, tgt.normals);
+  std::vector<Eigen::Isometry3d> tried;
+  std::optional<std::size_t> accepted;
+  int refined = 0;
+  for (std::size_t rank = 0; rank < r.reports.size() && refined < cfg.max_refinements; ++rank) {
+    CandidateReport& rep = r.reports[rank];
+    const Eigen::Isometry3d coarse_T = rep.T_target_source;
+    const bool seen = std::any_of(tried.begin(), tried.end(), [&](const Eigen::Isometry3d& T0) {
+      return (T0.translation() - coarse_T.translation()).norm() < kSameCandidateDistance &&
+             rotation_angle(T0.linear().transpose() * coarse_T.linear()) < kSameCandidateAngle;
+    });
+    if (seen) continue;
+    tried.push_back(coarse_T);
+    ++refined;
+    Eigen::Isometry3d T = coarse_T;
+    IcpConfig coarse = icp;
+    coarse.max_correspondence_distance = cfg.coarse_correspondence_distance;
+    const IcpResult r1 = register_icp(src.points, icp_target, T, coarse);
+    if (r1.status != IcpStatus::too_few_correspondences && r1.status != IcpStatus::degenerate) T = r1.T_target_source;
+    const IcpResult r2 = register_icp(src.points, icp_target, T, icp);
+    if (r2.status != IcpStatus::too_few_correspondences && r2.status != IcpStatus::degenerate) T = r2.T_target_source;
+    const Overlap o = mutual_overlap(src.points, tgt.points, T, cfg.acceptance.overlap_distance);
+    tried.push_back(T);  // later candidates that start where this one ended are the same
+    rep.refined = true;
+    rep.T_target_source = T;
+    rep.T_world = to_world(T);
+    rep.rmse = o.rmse;
+    rep.overlap = o.share;
+    rep.icp_rmse = r2.rmse;
+    rep.accepted = o.rmse < cfg.acceptance.e_icp && o.share >= cfg.acceptance.min_overlap;
+    if (rep.accepted && (!accepted || rep.overlap > r.reports[*accepted].overlap)) accepted = rank;
+  }
+  t.add("refinement", sw.lap_ms());
+  if (!accepted) {
+    r.reason = refined > 0 ? "no refined candidate passes the acceptance test"
+                           : "no geometrically consistent group of correspondences";
+    const auto best = std::max_element(r.reports.begin(), r.reports.end(), [](const auto& a, const auto& b) {
+      return a.refined != b.refined ? b.refined : a.overlap < b.overlap;
+    });
+    if (best != r.reports.end() && best->refined) {
+      r.rmse = best->rmse;
+      r.overlap = best->overlap;
+    }
+    t.add("merge", 0.0);
+    return r;
+  }
+  const CandidateReport& best = r.reports[*accepted];
+  r.success = true;
+  r.rmse = best.rmse;
+  r.overlap = best.overlap;
+  r.T_target_source = to_world(best.T_target_source);
+  const Eigen::Isometry3f Tf = best.T_target_source.cast<float>();
+  PointCloud all;
+  all.origin = target.origin;
+  all.points = target.points;
+  for (const Vec3f& p : src.points) all.points.push_back(Tf * p);
+  r.merged_map = voxel_downsample(all, {.res_voxel = cfg.merge_voxel, .n_min = 1});
+  t.add("merge", sw.lap_ms());
+  return r;
+}
+
 }  // namespace
 
 void GlobalRegistrationConfig::validate() const {
@@ -284,6 +412,7 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
   if (target.empty()) throw InputError("registration: the target cloud is empty");
   source.check_finite("registration source");
   target.check_finite("registration target");
+  if (!cfg.segments) return register_whole(source, target, cfg);
   GlobalRegistrationResult r;
   Timings& t = r.timings;
   Stopwatch sw;

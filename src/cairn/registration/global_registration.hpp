@@ -86,6 +86,12 @@ struct LevellingConfig {
 };
 
 struct GlobalRegistrationConfig {
+  /// Sec. 4.4 segments both clouds and describes their object segments only. false: keypoints
+  /// and descriptors on the whole (voxelised) clouds, no levelling, and every candidate among the
+  /// max_refinements most-voted is refined by ICP on the whole clouds; the accepted one with the
+  /// largest overlap wins (scenes without a ground plane or objects, e.g. indoor RGB-D fragments).
+  /// Normals then point towards normals.viewpoint (a sensor at each cloud's origin).
+  bool segments = true;
   VoxelGridConfig source_voxel;  // step 1 (res_voxel, Table 3)
   NormalConfig normals{.radius = 0.1, .k = 0};  // for SHOT (surface normals of the segments)
   IssConfig iss;
@@ -129,6 +135,9 @@ struct GlobalRegistrationConfig {
 
   template <class V>
   void visit(V& v) {
+    v("segments", segments,
+      "segment both clouds and describe their object segments (Sec. 4.4); false: descriptors on the whole clouds, "
+      "candidates verified by ICP overlap (scenes without ground or objects)");
     v("source_voxel", source_voxel, "voxel grid applied to the source before segmentation (Sec. 4.4 step 1)");
     v("normals", normals, "surface normals for the SHOT descriptors");
     v("iss", iss, "ISS keypoints (R_iss, Table 3)");
