@@ -129,6 +129,10 @@ TEST(Cli, ProtocolRegistersWhileMapping) {
   EXPECT_GE(j["all"]["success"].get<int>(), 1);
   EXPECT_FALSE(j["time_to_first_success_s"][0].is_null());
   EXPECT_LE(j["time_to_first_success_s"][0].get<double>(), 10.0);
+  // Against the map as built (its own offset from the truth removed) the registration meets the
+  // issue's 0.3 deg / 2 cm; against the truth it also carries the map's offset (seed 3: ~3.7 cm).
+  EXPECT_LT(j["all"]["rotation_error_vs_map_deg"]["max"].get<double>(), 0.3);
+  EXPECT_LT(j["all"]["translation_error_vs_map_m"]["max"].get<double>(), 0.02);
   EXPECT_TRUE(std::filesystem::exists(dir / "protocol.json"));
   EXPECT_TRUE(std::filesystem::exists(dir / "trials.png"));
   EXPECT_NE(r.err.find("t = 10.0 s"), std::string::npos);  // progress on stderr
