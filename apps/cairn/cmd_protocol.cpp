@@ -14,7 +14,6 @@
 #include "cairn/core/image.hpp"
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/mapping/mapper.hpp"
-#include "cairn/registration/icp.hpp"
 #include "cairn/sim/simulation.hpp"
 #include "commands.hpp"
 #include "sim_registration.hpp"
@@ -26,10 +25,6 @@ namespace {
 // alignment through); the protocol counts them separately.
 constexpr double kWrongRotationDeg = 2.0;
 constexpr double kWrongTranslation = 0.10;  // [m]
-// The map's rigid offset from the true surfaces (for the error against the map as built).
-const IcpConfig kMapOffsetIcp{.objective = "point_to_plane", .kernel = "huber", .kernel_scale = 0.03,
-                              .max_correspondence_distance = 0.15, .max_iterations = 30};
-constexpr float kNearStone = 0.5f;  // [m] map points this close to a true stone are "at the stones"
 constexpr int kCellPixels = 24;             // grid picture: one cell per trial
 // Acceptance-study picture: overlap share (x, 0..1) against overlap RMSE (y, 0..kPlotMaxRmse).
 constexpr int kPlotSize = 480;
@@ -150,12 +145,6 @@ int run_protocol(const ProtocolArgs& a) {
     const io::RunDirectory rd = io::open_run_directory(run_dir);
     const MetricDrone drone = load_metric_drone(rd, cfg.scale);
     const RegistrationTruth truth = load_registration_truth(rd, num_stones);
-    const IcpTarget true_surface = IcpTarget::from_cloud(truth.snapshot, {.k = 20});
-    std::vector<Vec3f> stone_points;  // the true stones' surface (snapshot-local coordinates)
-    for (std::size_t i = 0; i < truth.snapshot.size(); ++i)
-      if (truth.snapshot.labels[i] >= 0) stone_points.push_back(truth.snapshot.points[i]);
-    const Vec3d stones_origin = truth.snapshot.origin;
-    const KdTree true_stones(stone_points);
     PointCloud mirrored = drone.cloud;  // a site that does not exist: the stones' layout mirrored
     for (Vec3f& p : mirrored.points) p.x() = -p.x();
     mirrored.origin.x() = -mirrored.origin.x();
@@ -177,18 +166,7 @@ int run_protocol(const ProtocolArgs& a) {
       if (!map.empty()) {
         const GlobalRegistrationResult r = register_global(drone.cloud, map, cfg.segmentation, cfg.registration);
         t.score = score_registration(r, drone, truth);
-        std::vector<std::uint32_t> near;
-        for (std::uint32_t i = 0; i < map.size(); ++i) {
-          float d2 = 0.0f;
-          (void)true_stones.nearest((map.world(i) - stones_origin).cast<float>(), &d2);
-          if (d2 < kNearStone * kNearStone) near.push_back(i);
-        }
-        const PointCloud map_stones = select(map, near);
-        const Similarity T_map_world = Similarity::from_isometry(
-            map_stones.size() < std::size_t(kMapOffsetIcp.min_correspondences)
-                ? Eigen::Isometry3d::Identity()
-                : register_icp(map_stones, true_surface, Eigen::Isometry3d::Identity(), kMapOffsetIcp)
-                      .T_target_source.inverse());
+        const Similarity T_map_world = Similarity::from_isometry(map_offset_at_objects(map, truth.snapshot).inverse());
         const Vec3d centre_in_map = T_map_world * truth.site_centre;
         t.map_offset_m = (centre_in_map - truth.site_centre).norm();
         t.error_vs_map = registration_error(Similarity::from_isometry(r.T_target_source),

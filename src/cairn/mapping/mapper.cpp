@@ -9,7 +9,9 @@
 #include <tbb/task_group.h>
 
 #include "cairn/core/error.hpp"
+#include "cairn/core/kdtree.hpp"
 #include "cairn/core/voxel_grid.hpp"
+#include "cairn/registration/icp.hpp"
 #include "cairn/mapping/self_filter.hpp"
 
 namespace cairn {
@@ -459,6 +461,31 @@ TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate, const
   e.ate_rmse_without_mean = std::sqrt(std::max(0.0, e.ate_rmse * e.ate_rmse - e.mean_error.squaredNorm()));
   e.rotation_rmse_deg = std::sqrt(sum_rot / e.num);
   return e;
+}
+
+Eigen::Isometry3d map_offset_at_objects(const PointCloud& map, const PointCloud& truth, double near) {
+  if (truth.labels.size() != truth.size()) throw InputError("map_offset_at_objects: the truth cloud has no labels");
+  std::vector<Vec3f> objects;  // truth-local coordinates
+  for (std::size_t i = 0; i < truth.size(); ++i)
+    if (truth.labels[i] >= 0) objects.push_back(truth.points[i]);
+  if (objects.empty()) return Eigen::Isometry3d::Identity();
+  const KdTree tree(objects);
+  std::vector<std::uint32_t> keep;
+  const float near_sq = float(near * near);
+  for (std::uint32_t i = 0; i < map.size(); ++i) {
+    float d2 = 0.0f;
+    (void)tree.nearest((map.world(i) - truth.origin).cast<float>(), &d2);
+    if (d2 < near_sq) keep.push_back(i);
+  }
+  constexpr std::size_t kMinPoints = 10;
+  if (keep.size() < kMinPoints) return Eigen::Isometry3d::Identity();
+  const IcpTarget target = IcpTarget::from_cloud(truth, {.k = 20});
+  const IcpConfig icp{.objective = "point_to_plane", .kernel = "huber", .kernel_scale = 0.03,
+                      .max_correspondence_distance = 0.15, .max_iterations = 30};
+  const IcpResult r = register_icp(select(map, keep), target, Eigen::Isometry3d::Identity(), icp);
+  return r.status == IcpStatus::too_few_correspondences || r.status == IcpStatus::degenerate
+             ? Eigen::Isometry3d::Identity()
+             : r.T_target_source;
 }
 
 }  // namespace cairn

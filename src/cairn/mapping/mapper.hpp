@@ -190,4 +190,13 @@ struct TrajectoryError {
 [[nodiscard]] TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate,
                                                const std::vector<StampedPose>& truth);
 
+/// Rigid offset of a map from the true surfaces where the objects are (the map's own
+/// georeferencing error there: GNSS bias and heading error no relative constraint observes).
+/// ICP (point-to-plane, robust) of the map's points within `near` of a labelled truth point
+/// (label >= 0) onto the whole truth cloud. Returns T_true_map: map (world) coordinates -> where
+/// those points truly are. Identity when fewer than 10 map points are near objects. Throws
+/// InputError when `truth` has no labels.
+[[nodiscard]] Eigen::Isometry3d map_offset_at_objects(const PointCloud& map, const PointCloud& truth,
+                                                      double near = 0.5);
+
 }  // namespace cairn
