@@ -149,30 +149,41 @@ Overlap mutual_overlap(std::span<const Vec3f> source, std::span<const Vec3f> tar
 }
 
 /// Yaw + translation hypotheses from pairs of centroids: source pair (i, j) onto target pair
-/// (k, l) when their lengths agree within d_match; each verified against all centroids.
+/// (k, l) when their horizontal lengths agree within d_match; each verified against all centroids.
+/// Unordered source pairs against ordered target pairs give every distinct hypothesis once; the
+/// target pairs are sorted by length so that only those within d_match are visited.
 std::vector<std::pair<Eigen::Isometry3d, Verification>> centroid_candidates(const SegmentSet& src, const SegmentSet& tgt,
                                                                               const GlobalRegistrationConfig& cfg) {
   std::vector<std::pair<Eigen::Isometry3d, Verification>> out;
   const auto& S = src.centroids;
   const auto& T = tgt.centroids;
+  struct TargetPair {
+    double length;
+    std::size_t k, l;
+  };
+  std::vector<TargetPair> target_pairs;
+  for (std::size_t k = 0; k < T.size(); ++k)
+    for (std::size_t l = 0; l < T.size(); ++l)
+      if (k != l) target_pairs.push_back({(T[l] - T[k]).head<2>().cast<double>().norm(), k, l});
+  std::sort(target_pairs.begin(), target_pairs.end(), [](const TargetPair& a, const TargetPair& b) {
+    return a.length != b.length ? a.length < b.length : (a.k != b.k ? a.k < b.k : a.l < b.l);
+  });
   for (std::size_t i = 0; i < S.size(); ++i)
-    for (std::size_t j = 0; j < S.size(); ++j) {
-      if (i == j) continue;
+    for (std::size_t j = i + 1; j < S.size(); ++j) {
       const Eigen::Vector2d a = (S[j] - S[i]).head<2>().cast<double>();
       if (a.norm() < cfg.min_centroid_baseline) continue;
-      for (std::size_t k = 0; k < T.size(); ++k)
-        for (std::size_t l = 0; l < T.size(); ++l) {
-          if (k == l) continue;
-          const Eigen::Vector2d b = (T[l] - T[k]).head<2>().cast<double>();
-          if (std::abs(b.norm() - a.norm()) > cfg.d_match) continue;
-          const double yaw = std::atan2(b.y(), b.x()) - std::atan2(a.y(), a.x());
-          Eigen::Isometry3d H = Eigen::Isometry3d::Identity();
-          H.linear() = Eigen::AngleAxisd(yaw, Vec3d::UnitZ()).toRotationMatrix();
-          const Vec3d ms = 0.5 * (S[i] + S[j]).cast<double>(), mt = 0.5 * (T[k] + T[l]).cast<double>();
-          H.translation() = mt - H.linear() * ms;
-          Verification v = verify_centroids(src, tgt, H, cfg.d_match);
-          if (v.inliers >= cfg.acceptance.min_matched_segments) out.emplace_back(H, std::move(v));
-        }
+      auto it = std::lower_bound(target_pairs.begin(), target_pairs.end(), a.norm() - cfg.d_match,
+                                 [](const TargetPair& p, double len) { return p.length < len; });
+      for (; it != target_pairs.end() && it->length <= a.norm() + cfg.d_match; ++it) {
+        const Eigen::Vector2d b = (T[it->l] - T[it->k]).head<2>().cast<double>();
+        const double yaw = std::atan2(b.y(), b.x()) - std::atan2(a.y(), a.x());
+        Eigen::Isometry3d H = Eigen::Isometry3d::Identity();
+        H.linear() = Eigen::AngleAxisd(yaw, Vec3d::UnitZ()).toRotationMatrix();
+        const Vec3d ms = 0.5 * (S[i] + S[j]).cast<double>(), mt = 0.5 * (T[it->k] + T[it->l]).cast<double>();
+        H.translation() = mt - H.linear() * ms;
+        Verification v = verify_centroids(src, tgt, H, cfg.d_match);
+        if (v.inliers >= cfg.acceptance.min_matched_segments) out.emplace_back(H, std::move(v));
+      }
     }
   std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
     if (a.second.inliers != b.second.inliers) return a.second.inliers > b.second.inliers;
