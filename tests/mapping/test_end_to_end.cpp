@@ -222,10 +222,18 @@ TEST_P(MappingLongRun, SixtySecondsMeetTheAbsoluteTargets) {
               100 * acc.within_3cm, acc.median, double(r.stats.pairs) / r.seconds);
   // Measured: exp1 3.29 -> 1.34 cm, exp2 3.84 -> 1.83 cm: the 2 cm is met at 60 s (20 s
   // exp1 seed 1: 2.11 cm). Map within 2 cm: 91.6 % / 91.4 % (median 8 mm) -- the 95 % is
-  // not reached in absolute terms.
+  // not reached in absolute terms; with the run's mean position error (exp1: 6 mm, mostly z)
+  // removed exp1 gives 95.0 %: the map's spread is that tight, and the unobservable mean is
+  // what is left (no range dependence: 90-92 % within 4, 4-7 and 7-10 m of the cabin).
   EXPECT_LT(mapped.ate_rmse, 0.02);
   EXPECT_LT(mapped.ate_rmse, 0.6 * raw.ate_rmse);
   EXPECT_GT(acc.within_2cm, 0.88);
+  PointCloud shifted = r.map;
+  shifted.origin -= mapped.mean_error;
+  const MapAccuracy shape = map_accuracy(shifted, TrueSurface(run.truth_dir()));
+  std::printf("[ %s 60 s seed %llu ] map without the run's mean position error: %.1f %% within 2 cm\n",
+              scenario.c_str(), static_cast<unsigned long long>(seed), 100 * shape.within_2cm);
+  EXPECT_GT(shape.within_2cm, 0.91);  // exp1 95.0 %, exp2 92.9 %
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, MappingLongRun,
