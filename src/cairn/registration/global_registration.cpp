@@ -204,6 +204,60 @@ std::vector<std::pair<Eigen::Isometry3d, Verification>> centroid_candidates(cons
 
 double tilt(const Eigen::Isometry3d& T) { return std::acos(std::clamp((T.linear() * Vec3d::UnitZ()).z(), -1.0, 1.0)); }
 
+/// Steps 2-4a on two prepared sets: keypoints + descriptors (timed as keypoints, descriptors),
+/// matching (timed), and the consistency groups (their time goes to the next lap: verification),
+/// without those tilting z when gravity_aligned. Fills the counts of `r`.
+std::vector<TransformCandidate> descriptor_candidates(SegmentSet& src, SegmentSet& tgt, const GlobalRegistrationConfig& cfg,
+                                                      bool outward_normals, GlobalRegistrationResult& r, Stopwatch& sw) {
+  Timings& t = r.timings;
+  Timings inner;
+  describe(src, cfg, inner, "source", outward_normals);
+  describe(tgt, cfg, inner, "target", outward_normals);
+  r.source_keypoints = src.keypoints.size();
+  r.target_keypoints = tgt.keypoints.size();
+  t.add("keypoints", inner.get("keypoints_source") + inner.get("keypoints_target"));
+  t.add("descriptors", inner.get("descriptors_source") + inner.get("descriptors_target"));
+  sw.lap_ms();
+  const std::vector<Correspondence> matches = match_descriptors(src.descriptors, tgt.descriptors, cfg.matching);
+  r.correspondences = matches.size();
+  t.add("matching", sw.lap_ms());
+  std::vector<Vec3f> src_kp, tgt_kp;
+  for (std::uint32_t i : src.keypoints) src_kp.push_back(src.points[i]);
+  for (std::uint32_t i : tgt.keypoints) tgt_kp.push_back(tgt.points[i]);
+  std::vector<TransformCandidate> candidates = geometric_consistency_grouping(src_kp, tgt_kp, matches, cfg.grouping);
+  if (cfg.gravity_aligned)
+    std::erase_if(candidates, [&](const TransformCandidate& c) { return tilt(c.T_target_source) > cfg.max_tilt_deg * kDegToRad; });
+  r.candidates = candidates.size();  // descriptor candidates (the paper's b)
+  return candidates;
+}
+
+/// True when `T` is (within ICP's basin) one of the alignments already tried.
+bool already_tried(const std::vector<Eigen::Isometry3d>& tried, const Eigen::Isometry3d& T) {
+  return std::any_of(tried.begin(), tried.end(), [&](const Eigen::Isometry3d& T0) {
+    return (T0.translation() - T.translation()).norm() < kSameCandidateDistance &&
+           rotation_angle(T0.linear().transpose() * T.linear()) < kSameCandidateAngle;
+  });
+}
+
+/// The two ICP passes of step 5 from T: coarse_correspondence_distance, then the configured one.
+/// A pass that fails (too few pairs, degenerate) leaves T as it was. Returns T and the second
+/// pass's RMSE.
+std::pair<Eigen::Isometry3d, double> refine_two_pass(std::span<const Vec3f> source, const IcpTarget& target,
+                                                     Eigen::Isometry3d T, const GlobalRegistrationConfig& cfg) {
+  IcpConfig icp = cfg.icp;
+  icp.four_dof = cfg.gravity_aligned || cfg.icp.four_dof;
+  IcpConfig coarse = icp;
+  coarse.max_correspondence_distance = cfg.coarse_correspondence_distance;
+  const auto usable = [](const IcpResult& x) {
+    return x.status != IcpStatus::too_few_correspondences && x.status != IcpStatus::degenerate;
+  };
+  const IcpResult r1 = register_icp(source, target, T, coarse);
+  if (usable(r1)) T = r1.T_target_source;
+  const IcpResult r2 = register_icp(source, target, T, icp);
+  if (usable(r2)) T = r2.T_target_source;
+  return {T, r2.rmse};
+}
+
 /// The whole cloud as one set (segments = false).
 SegmentSet whole_cloud(std::span<const Vec3f> points) {
   SegmentSet s;
@@ -233,24 +287,7 @@ GlobalRegistrationResult register_whole(const PointCloud& source, const PointClo
   t.add("segmentation_target", 0.0);
   SegmentSet src = whole_cloud(r.source_voxelised.points), tgt = whole_cloud(target.points);
   sw.lap_ms();
-  Timings inner;
-  describe(src, cfg, inner, "source", false);
-  describe(tgt, cfg, inner, "target", false);
-  r.source_keypoints = src.keypoints.size();
-  r.target_keypoints = tgt.keypoints.size();
-  t.add("keypoints", inner.get("keypoints_source") + inner.get("keypoints_target"));
-  t.add("descriptors", inner.get("descriptors_source") + inner.get("descriptors_target"));
-  sw.lap_ms();
-  const std::vector<Correspondence> matches = match_descriptors(src.descriptors, tgt.descriptors, cfg.matching);
-  r.correspondences = matches.size();
-  t.add("matching", sw.lap_ms());
-  std::vector<Vec3f> src_kp, tgt_kp;
-  for (std::uint32_t i : src.keypoints) src_kp.push_back(src.points[i]);
-  for (std::uint32_t i : tgt.keypoints) tgt_kp.push_back(tgt.points[i]);
-  std::vector<TransformCandidate> candidates = geometric_consistency_grouping(src_kp, tgt_kp, matches, cfg.grouping);
-  if (cfg.gravity_aligned)
-    std::erase_if(candidates, [&](const TransformCandidate& c) { return tilt(c.T_target_source) > cfg.max_tilt_deg * kDegToRad; });
-  r.candidates = candidates.size();
+  const std::vector<TransformCandidate> candidates = descriptor_candidates(src, tgt, cfg, false, r, sw);
   const auto to_world = [&](const Eigen::Isometry3d& T_local) {
     Eigen::Isometry3d T = Eigen::Translation3d(target.origin) * T_local;
     T.translation() -= T.linear() * source.origin;
@@ -265,29 +302,16 @@ GlobalRegistrationResult register_whole(const PointCloud& source, const PointClo
   }
   t.add("verification", sw.lap_ms());
 
-  IcpConfig icp = cfg.icp;
-  icp.four_dof = cfg.gravity_aligned || cfg.icp.four_dof;
   const IcpTarget icp_target(tgt.points, tgt.normals);
   std::vector<Eigen::Isometry3d> tried;
   std::optional<std::size_t> accepted;
   int refined = 0;
   for (std::size_t rank = 0; rank < r.reports.size() && refined < cfg.max_refinements; ++rank) {
     CandidateReport& rep = r.reports[rank];
-    const Eigen::Isometry3d coarse_T = rep.T_target_source;
-    const bool seen = std::any_of(tried.begin(), tried.end(), [&](const Eigen::Isometry3d& T0) {
-      return (T0.translation() - coarse_T.translation()).norm() < kSameCandidateDistance &&
-             rotation_angle(T0.linear().transpose() * coarse_T.linear()) < kSameCandidateAngle;
-    });
-    if (seen) continue;
-    tried.push_back(coarse_T);
+    if (already_tried(tried, rep.T_target_source)) continue;
+    tried.push_back(rep.T_target_source);
     ++refined;
-    Eigen::Isometry3d T = coarse_T;
-    IcpConfig coarse = icp;
-    coarse.max_correspondence_distance = cfg.coarse_correspondence_distance;
-    const IcpResult r1 = register_icp(src.points, icp_target, T, coarse);
-    if (r1.status != IcpStatus::too_few_correspondences && r1.status != IcpStatus::degenerate) T = r1.T_target_source;
-    const IcpResult r2 = register_icp(src.points, icp_target, T, icp);
-    if (r2.status != IcpStatus::too_few_correspondences && r2.status != IcpStatus::degenerate) T = r2.T_target_source;
+    const auto [T, icp_rmse] = refine_two_pass(src.points, icp_target, rep.T_target_source, cfg);
     const Overlap o = mutual_overlap(src.points, tgt.points, T, cfg.acceptance.overlap_distance);
     tried.push_back(T);  // later candidates that start where this one ended are the same
     rep.refined = true;
@@ -295,7 +319,7 @@ GlobalRegistrationResult register_whole(const PointCloud& source, const PointClo
     rep.T_world = to_world(T);
     rep.rmse = o.rmse;
     rep.overlap = o.share;
-    rep.icp_rmse = r2.rmse;
+    rep.icp_rmse = icp_rmse;
     rep.accepted = o.rmse < cfg.acceptance.e_icp && o.share >= cfg.acceptance.min_overlap;
     if (rep.accepted && (!accepted || rep.overlap > r.reports[*accepted].overlap)) accepted = rank;
   }
@@ -469,29 +493,8 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     return r;
   }
 
-  // 2. Keypoints and descriptors on the object segments.
-  Timings inner;
-  describe(src, cfg, inner, "source");
-  describe(tgt, cfg, inner, "target");
-  r.source_keypoints = src.keypoints.size();
-  r.target_keypoints = tgt.keypoints.size();
-  t.add("keypoints", inner.get("keypoints_source") + inner.get("keypoints_target"));
-  t.add("descriptors", inner.get("descriptors_source") + inner.get("descriptors_target"));
-  sw.lap_ms();
-
-  // 3. Matching.
-  const std::vector<Correspondence> matches = match_descriptors(src.descriptors, tgt.descriptors, cfg.matching);
-  r.correspondences = matches.size();
-  t.add("matching", sw.lap_ms());
-
-  // 4. Consistency grouping + centroid verification.
-  std::vector<Vec3f> src_kp, tgt_kp;
-  for (std::uint32_t i : src.keypoints) src_kp.push_back(src.points[i]);
-  for (std::uint32_t i : tgt.keypoints) tgt_kp.push_back(tgt.points[i]);
-  std::vector<TransformCandidate> candidates = geometric_consistency_grouping(src_kp, tgt_kp, matches, cfg.grouping);
-  if (cfg.gravity_aligned)
-    std::erase_if(candidates, [&](const TransformCandidate& c) { return tilt(c.T_target_source) > cfg.max_tilt_deg * kDegToRad; });
-  r.candidates = candidates.size();  // descriptor candidates (the paper's b)
+  // 2.-4. Keypoints and descriptors on the object segments, matching, consistency groups.
+  std::vector<TransformCandidate> candidates = descriptor_candidates(src, tgt, cfg, true, r, sw);
   std::vector<Verification> verified;
   std::vector<std::string> origins(candidates.size(), "descriptors");
   for (const TransformCandidate& c : candidates) verified.push_back(verify_centroids(src, tgt, c.T_target_source, cfg.d_match));
@@ -524,8 +527,6 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
   t.add("verification", sw.lap_ms());
 
   // 5. ICP on the matched segments, acceptance test.
-  IcpConfig icp = cfg.icp;
-  icp.four_dof = cfg.gravity_aligned || cfg.icp.four_dof;
   int refined = 0;
   std::vector<Eigen::Isometry3d> tried;
   std::optional<std::size_t> accepted;
@@ -534,11 +535,7 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     const Verification& v = verified[order[rank]];
     if (v.inliers < cfg.acceptance.min_matched_segments) break;  // sorted: the rest have fewer
     const Eigen::Isometry3d& coarse_T = r.reports[rank].T_target_source;
-    const bool seen = std::any_of(tried.begin(), tried.end(), [&](const Eigen::Isometry3d& T0) {
-      return (T0.translation() - coarse_T.translation()).norm() < kSameCandidateDistance &&
-             rotation_angle(T0.linear().transpose() * coarse_T.linear()) < kSameCandidateAngle;
-    });
-    if (seen) continue;  // the same alignment from another group: refining it again cannot help
+    if (already_tried(tried, coarse_T)) continue;  // the same alignment from another group: refining it again cannot help
     tried.push_back(coarse_T);
     ++refined;
     std::vector<Vec3f> sp, tp, tn;
@@ -551,13 +548,7 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     }
     const IcpTarget icp_target(tp, tn);
     CandidateReport& rep = r.reports[rank];
-    Eigen::Isometry3d T = rep.T_target_source;
-    IcpConfig coarse = icp;
-    coarse.max_correspondence_distance = cfg.coarse_correspondence_distance;
-    const IcpResult r1 = register_icp(sp, icp_target, T, coarse);
-    if (r1.status != IcpStatus::too_few_correspondences && r1.status != IcpStatus::degenerate) T = r1.T_target_source;
-    const IcpResult r2 = register_icp(sp, icp_target, T, icp);
-    if (r2.status != IcpStatus::too_few_correspondences && r2.status != IcpStatus::degenerate) T = r2.T_target_source;
+    const auto [T, icp_rmse] = refine_two_pass(sp, icp_target, rep.T_target_source, cfg);
     const Overlap o = mutual_overlap(sp, tp, T, cfg.acceptance.overlap_distance);
     // The matched set after refinement (a refined transform may pair the centroids differently).
     const Verification after = verify_centroids(src, tgt, T, cfg.d_match);
@@ -566,7 +557,7 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     rep.T_world = to_world(T);
     rep.rmse = o.rmse;
     rep.overlap = o.share;
-    rep.icp_rmse = r2.rmse;
+    rep.icp_rmse = icp_rmse;
     rep.accepted = o.rmse < cfg.acceptance.e_icp && o.share >= cfg.acceptance.min_overlap &&
                    after.inliers >= cfg.acceptance.min_matched_segments;
     if (rep.accepted && !accepted) {
