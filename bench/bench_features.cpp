@@ -16,7 +16,6 @@
 // Normals for both (cairn's PCA normals) are computed outside the timed region.
 #include <benchmark/benchmark.h>
 #include <pcl/features/shot_omp.h>
-#include <pcl/keypoints/iss_3d.h>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_types.h>
 #include <pcl/recognition/cg/geometric_consistency.h>
@@ -34,6 +33,7 @@
 #include "support/feature_data.hpp"
 #include "support/site_segments.hpp"
 #include "support/pcl_convert.hpp"
+#include "support/pcl_iss.hpp"
 
 using namespace cairn;
 
@@ -185,14 +185,8 @@ void BM_Pcl_Iss(benchmark::State& state) {
   const Set& s = set_of(int(state.range(0)));
   std::size_t n = 0;
   for (auto _ : state) {
-    pcl::ISSKeypoint3D<pcl::PointXYZ, pcl::PointXYZ> iss;
-    iss.setSearchMethod(pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>());
-    iss.setSalientRadius(s.iss.salient_radius);
-    iss.setNonMaxRadius(s.iss.non_max_radius);
-    iss.setThreshold21(s.iss.gamma_21);
-    iss.setThreshold32(s.iss.gamma_32);
-    iss.setMinNeighbors(s.iss.min_neighbors);
-    iss.setNumberOfThreads(2);
+    test::PclIss iss;
+    test::configure_pcl_iss(iss, s.iss);
     iss.setInputCloud(s.pcl_points);
     CloudXYZ out;
     iss.compute(out);

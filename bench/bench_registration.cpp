@@ -44,7 +44,6 @@
 #include <pcl/features/normal_3d_omp.h>
 #include <pcl/features/shot_omp.h>
 #include <pcl/kdtree/kdtree_flann.h>
-#include <pcl/keypoints/iss_3d.h>
 #include <pcl/point_types.h>
 #include <pcl/recognition/cg/geometric_consistency.h>
 #include <pcl/registration/icp.h>
@@ -80,6 +79,7 @@
 #include "cairn/registration/scale_recovery.hpp"
 #include "cairn/sim/simulation.hpp"
 #include "support/pcl_convert.hpp"
+#include "support/pcl_iss.hpp"
 
 using namespace cairn;
 
@@ -271,14 +271,8 @@ using Normals = pcl::PointCloud<pcl::Normal>;
 using Descriptors = pcl::PointCloud<pcl::SHOT352>;
 
 CloudXYZ::Ptr pcl_iss(const CloudXYZ::Ptr& cloud, const IssConfig& iss) {
-  pcl::ISSKeypoint3D<pcl::PointXYZ, pcl::PointXYZ> est;
-  est.setSearchMethod(pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>());
-  est.setSalientRadius(iss.salient_radius);
-  est.setNonMaxRadius(iss.non_max_radius);
-  est.setThreshold21(iss.gamma_21);
-  est.setThreshold32(iss.gamma_32);
-  est.setMinNeighbors(iss.min_neighbors);
-  est.setNumberOfThreads(2);
+  test::PclIss est;
+  test::configure_pcl_iss(est, iss);
   est.setInputCloud(cloud);
   auto out = pcl::make_shared<CloudXYZ>();
   est.compute(*out);

@@ -5,7 +5,6 @@
 // correspondences), and the whole tutorial (milk carton in a Kinect scene).
 #include <gtest/gtest.h>
 #include <pcl/features/shot_omp.h>
-#include <pcl/keypoints/iss_3d.h>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_types.h>
 #include <pcl/recognition/cg/geometric_consistency.h>
@@ -28,6 +27,7 @@
 #include "support/pcl_convert.hpp"
 #include "support/site_segments.hpp"
 #include "support/test_data.hpp"
+#include "support/pcl_iss.hpp"
 
 using namespace cairn;
 
@@ -40,14 +40,8 @@ using CloudXYZ = pcl::PointCloud<pcl::PointXYZ>;
 
 std::vector<std::uint32_t> pcl_iss(std::span<const Vec3f> points, const IssConfig& cfg) {
   auto cloud = to_pcl(points);
-  pcl::ISSKeypoint3D<pcl::PointXYZ, pcl::PointXYZ> iss;
-  iss.setSearchMethod(pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>());
-  iss.setSalientRadius(cfg.salient_radius);
-  iss.setNonMaxRadius(cfg.non_max_radius);
-  iss.setThreshold21(cfg.gamma_21);
-  iss.setThreshold32(cfg.gamma_32);
-  iss.setMinNeighbors(cfg.min_neighbors);
-  iss.setNumberOfThreads(2);
+  test::PclIss iss;
+  test::configure_pcl_iss(iss, cfg);
   iss.setInputCloud(cloud);
   CloudXYZ out;
   iss.compute(out);
