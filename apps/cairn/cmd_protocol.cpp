@@ -145,6 +145,7 @@ int run_protocol(const ProtocolArgs& a) {
     const io::RunDirectory rd = io::open_run_directory(run_dir);
     const MetricDrone drone = load_metric_drone(rd, cfg.scale);
     const RegistrationTruth truth = load_registration_truth(rd, num_stones);
+    const ObjectSurfaceTruth true_objects(truth.snapshot);  // for the map's offset at the stones
     PointCloud mirrored = drone.cloud;  // a site that does not exist: the stones' layout mirrored
     for (Vec3f& p : mirrored.points) p.x() = -p.x();
     mirrored.origin.x() = -mirrored.origin.x();
@@ -166,7 +167,7 @@ int run_protocol(const ProtocolArgs& a) {
       if (!map.empty()) {
         const GlobalRegistrationResult r = register_global(drone.cloud, map, cfg.segmentation, cfg.registration);
         t.score = score_registration(r, drone, truth);
-        const Similarity T_map_world = Similarity::from_isometry(map_offset_at_objects(map, truth.snapshot).inverse());
+        const Similarity T_map_world = Similarity::from_isometry(true_objects.map_offset(map).inverse());
         const Vec3d centre_in_map = T_map_world * truth.site_centre;
         t.map_offset_m = (centre_in_map - truth.site_centre).norm();
         t.error_vs_map = registration_error(Similarity::from_isometry(r.T_target_source),

@@ -199,8 +199,8 @@ INSTANTIATE_TEST_SUITE_P(Scenarios, MappingEndToEnd,
 class MappingLongRun : public ::testing::TestWithParam<std::pair<std::string, std::uint64_t>> {};
 
 TEST_P(MappingLongRun, SixtySecondsMeetTheAbsoluteTargets) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "60 s mapping run: Release only (the 20 s runs cover the mapper under the sanitizers)";
+#if defined(__SANITIZE_ADDRESS__) || !defined(NDEBUG)
+  GTEST_SKIP() << "60 s mapping run: optimised builds only (the 20 s runs cover the mapper under the sanitizers)";
 #endif
   const auto& [scenario, seed] = GetParam();
   const fs::path dir = test::temp_dir("mapping_long_" + scenario) / "run";
@@ -225,7 +225,7 @@ TEST_P(MappingLongRun, SixtySecondsMeetTheAbsoluteTargets) {
   // not reached in absolute terms; with the run's mean position error (exp1: 6 mm, mostly z)
   // removed exp1 gives 95.0 %: the map's spread is that tight, and the unobservable mean is
   // what is left (no range dependence: 90-92 % within 4, 4-7 and 7-10 m of the cabin).
-  EXPECT_LT(mapped.ate_rmse, 0.02);
+  EXPECT_LT(mapped.ate_rmse, 0.02);  // the target; exp2 measures 1.83 cm (little margin)
   EXPECT_LT(mapped.ate_rmse, 0.6 * raw.ate_rmse);
   EXPECT_GT(acc.within_2cm, 0.88);
   PointCloud shifted = r.map;

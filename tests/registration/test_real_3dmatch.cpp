@@ -38,10 +38,11 @@ TEST(Real3DMatch, FragmentsRegisterWithoutSegments) {
   const GlobalRegistrationResult r = register_global(p.source, p.target, {}, cfg);
   ASSERT_TRUE(r.success) << r.reason;
   const auto e = test::error_at_centroid(r.T_target_source, p.T_gt, p.source);
-  // The ground truth is not the geometric optimum: the same ICP started AT the ground truth
-  // moves 5.5 cm at the centroid and 1.4-1.5° to a pose with more overlap and a smaller RMSE
-  // (PCL's ICP does the same, tests/peers/test_pcl_icp.cpp). cairn must land on that optimum,
-  // and within 2° / 6 cm of the stated truth. The objective is flat about an axis through the
+  // The ground truth is not the geometric optimum: the same two ICP passes started AT the ground
+  // truth move 5.7 cm at the centroid and 1.8° to a pose with more overlap and a smaller RMSE
+  // (PCL's ICP: 5.6 cm, 2.0°, tests/peers/test_pcl_icp.cpp). cairn must land on that optimum, and
+  // within 2° / 6 cm of the stated truth (measured 1.67°, 5.75 cm: little margin, by the nature
+  // of the reference; the 1 cm check against the optimum is the sharp one). The objective is flat about an axis through the
   // centroid: runs from the two starts end ~0.6° apart but within a millimetre at the centroid.
   const IcpTarget target = IcpTarget::from_cloud(p.target, cfg.normals);
   IcpConfig icp = cfg.icp;  // the same two passes as the registration's refinement
@@ -81,7 +82,12 @@ TEST(Real3DMatch, MirroredSceneIsRefused) {
   const GlobalRegistrationResult r = register_global(p.source, p.target, {}, indoor_config());
   EXPECT_FALSE(r.success);
   double best = 0.0;
-  for (const CandidateReport& c : r.reports) best = std::max(best, c.overlap);
+  std::size_t refined = 0;
+  for (const CandidateReport& c : r.reports) {
+    best = std::max(best, c.overlap);
+    refined += c.refined;
+  }
+  ASSERT_GT(refined, 0u) << "no candidate was refined: the overlap test was never reached";
   std::printf("mirrored 3DMatch target: %zu candidates, best overlap %.3f (%s)\n", r.candidates, best, r.reason.c_str());
   EXPECT_LT(best, indoor_config().acceptance.min_overlap);
 }

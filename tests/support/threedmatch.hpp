@@ -2,8 +2,10 @@
 // The GeoTransformer demo pair of 3DMatch fragments (shared/data/real/geotransformer-3dmatch-demo):
 // indoor RGB-D, 2.5 cm voxels, ground-truth pose in a NumPy file.
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <stdexcept>
 #include <string>
@@ -21,6 +23,7 @@ inline Eigen::Isometry3d read_npy_matrix(const std::filesystem::path& path) {
   char magic[8] = {};
   in.read(magic, 8);
   if (!in || std::memcmp(magic, "\x93NUMPY", 6) != 0) throw std::runtime_error("not a .npy file: " + path.string());
+  if (magic[6] != 1) throw std::runtime_error("only .npy format version 1 is read: " + path.string());
   std::uint16_t header_len = 0;
   in.read(reinterpret_cast<char*>(&header_len), 2);
   std::string header(header_len, '\0');

@@ -463,29 +463,35 @@ TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate, const
   return e;
 }
 
-Eigen::Isometry3d map_offset_at_objects(const PointCloud& map, const PointCloud& truth, double near) {
-  if (truth.labels.size() != truth.size()) throw InputError("map_offset_at_objects: the truth cloud has no labels");
-  std::vector<Vec3f> objects;  // truth-local coordinates
+ObjectSurfaceTruth::ObjectSurfaceTruth(const PointCloud& truth) : origin_(truth.origin) {
+  if (truth.labels.size() != truth.size()) throw InputError("map offset: the truth cloud has no labels");
   for (std::size_t i = 0; i < truth.size(); ++i)
-    if (truth.labels[i] >= 0) objects.push_back(truth.points[i]);
-  if (objects.empty()) return Eigen::Isometry3d::Identity();
-  const KdTree tree(objects);
+    if (truth.labels[i] >= 0) objects_.push_back(truth.points[i]);
+  object_tree_ = std::make_unique<KdTree>(objects_);
+  if (!objects_.empty()) target_ = std::make_unique<IcpTarget>(IcpTarget::from_cloud(truth, {.k = 20}));
+}
+
+Eigen::Isometry3d ObjectSurfaceTruth::map_offset(const PointCloud& map, double near_distance) const {
+  if (!target_) return Eigen::Isometry3d::Identity();  // no objects in the truth
   std::vector<std::uint32_t> keep;
-  const float near_sq = float(near * near);
+  const float near_sq = float(near_distance * near_distance);
   for (std::uint32_t i = 0; i < map.size(); ++i) {
     float d2 = 0.0f;
-    (void)tree.nearest((map.world(i) - truth.origin).cast<float>(), &d2);
+    (void)object_tree_->nearest((map.world(i) - origin_).cast<float>(), &d2);
     if (d2 < near_sq) keep.push_back(i);
   }
   constexpr std::size_t kMinPoints = 10;
   if (keep.size() < kMinPoints) return Eigen::Isometry3d::Identity();
-  const IcpTarget target = IcpTarget::from_cloud(truth, {.k = 20});
   const IcpConfig icp{.objective = "point_to_plane", .kernel = "huber", .kernel_scale = 0.03,
                       .max_correspondence_distance = 0.15, .max_iterations = 30};
-  const IcpResult r = register_icp(select(map, keep), target, Eigen::Isometry3d::Identity(), icp);
+  const IcpResult r = register_icp(select(map, keep), *target_, Eigen::Isometry3d::Identity(), icp);
   return r.status == IcpStatus::too_few_correspondences || r.status == IcpStatus::degenerate
              ? Eigen::Isometry3d::Identity()
              : r.T_target_source;
+}
+
+Eigen::Isometry3d map_offset_at_objects(const PointCloud& map, const PointCloud& truth, double near_distance) {
+  return ObjectSurfaceTruth(truth).map_offset(map, near_distance);
 }
 
 }  // namespace cairn

@@ -21,6 +21,7 @@
 #include <tbb/task_group.h>
 
 #include "cairn/core/io/run_dir.hpp"
+#include "cairn/core/kdtree.hpp"
 #include "cairn/core/log.hpp"
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/core/robot_model.hpp"
@@ -29,6 +30,7 @@
 #include "cairn/mapping/local_map.hpp"
 #include "cairn/mapping/pose_graph.hpp"
 #include "cairn/mapping/scan_pair.hpp"
+#include "cairn/registration/icp.hpp"
 
 namespace cairn {
 
@@ -190,13 +192,30 @@ struct TrajectoryError {
 [[nodiscard]] TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate,
                                                const std::vector<StampedPose>& truth);
 
-/// Rigid offset of a map from the true surfaces where the objects are (the map's own
-/// georeferencing error there: GNSS bias and heading error no relative constraint observes).
-/// ICP (point-to-plane, robust) of the map's points within `near` of a labelled truth point
-/// (label >= 0) onto the whole truth cloud. Returns T_true_map: map (world) coordinates -> where
-/// those points truly are. Identity when fewer than 10 map points are near objects. Throws
-/// InputError when `truth` has no labels.
+/// The truth side of map_offset_at_objects, prepared once per truth cloud (a labelled dense
+/// snapshot of the true surfaces: label >= 0 object, else terrain): ICP target with normals over
+/// all of it, kd-tree over its object points. Throws InputError when `truth` has no labels.
+class ObjectSurfaceTruth {
+ public:
+  explicit ObjectSurfaceTruth(const PointCloud& truth);
+  ObjectSurfaceTruth(const ObjectSurfaceTruth&) = delete;
+  ObjectSurfaceTruth& operator=(const ObjectSurfaceTruth&) = delete;
+  /// Rigid offset of a map from the true surfaces where the objects are (the map's own
+  /// georeferencing error there: GNSS bias and heading error no relative constraint observes).
+  /// ICP (point-to-plane, robust) of the map's points within `near_distance` of a true object
+  /// point onto the truth. Returns T_true_map: map (world) coordinates -> where those points truly
+  /// are. Identity when fewer than 10 map points are near objects or ICP finds too few pairs.
+  [[nodiscard]] Eigen::Isometry3d map_offset(const PointCloud& map, double near_distance = 0.5) const;
+
+ private:
+  Vec3d origin_;
+  std::vector<Vec3f> objects_;             // object points, truth-local coordinates
+  std::unique_ptr<KdTree> object_tree_;    // indexes objects_
+  std::unique_ptr<IcpTarget> target_;
+};
+
+/// ObjectSurfaceTruth(truth).map_offset(map, near_distance), for one-off use.
 [[nodiscard]] Eigen::Isometry3d map_offset_at_objects(const PointCloud& map, const PointCloud& truth,
-                                                      double near = 0.5);
+                                                      double near_distance = 0.5);
 
 }  // namespace cairn

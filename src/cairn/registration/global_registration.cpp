@@ -283,10 +283,9 @@ GlobalRegistrationResult register_whole(const PointCloud& source, const PointClo
   r.source_voxelised = voxel_downsample(source, cfg.source_voxel);
   r.source_points = r.source_voxelised.size();
   r.target_points = target.size();
-  t.add("segmentation_source", 0.0);
-  t.add("segmentation_target", 0.0);
   SegmentSet src = whole_cloud(r.source_voxelised.points), tgt = whole_cloud(target.points);
-  sw.lap_ms();
+  t.add("segmentation_source", sw.lap_ms());  // no segmentation: the source's voxel grid
+  t.add("segmentation_target", 0.0);
   const std::vector<TransformCandidate> candidates = descriptor_candidates(src, tgt, cfg, false, r, sw);
   const auto to_world = [&](const Eigen::Isometry3d& T_local) {
     Eigen::Isometry3d T = Eigen::Translation3d(target.origin) * T_local;

@@ -55,7 +55,8 @@ struct RegistrationAcceptanceConfig {
   void visit(V& v) {
     v("e_icp", e_icp, "ICP RMSE threshold e*_icp over the mutually overlapping points [m] (Table 3)");
     v("overlap_distance", overlap_distance, "a point overlaps when its nearest counterpart is closer than this [m]");
-    v("min_overlap", min_overlap, "minimum share of the matched segments' points that overlap");
+    v("min_overlap", min_overlap,
+      "minimum share of the compared points that overlap (the matched segments'; without segments the whole clouds')");
     v("min_matched_segments", min_matched_segments, "minimum number of matched segment pairs");
   }
 };
@@ -87,9 +88,9 @@ struct LevellingConfig {
 
 struct GlobalRegistrationConfig {
   /// Sec. 4.4 segments both clouds and describes their object segments only. false: keypoints
-  /// and descriptors on the whole (voxelised) clouds, no levelling, and every candidate among the
-  /// max_refinements most-voted is refined by ICP on the whole clouds; the accepted one with the
-  /// largest overlap wins (scenes without a ground plane or objects, e.g. indoor RGB-D fragments).
+  /// and descriptors on the whole (voxelised) clouds, no levelling, and up to max_refinements
+  /// distinct candidates (in vote order; one that starts where an earlier one started or ended is
+  /// skipped) are refined by ICP on the whole clouds; the accepted one with the largest overlap wins (scenes without a ground plane or objects, e.g. indoor RGB-D fragments).
   /// Normals then point towards normals.viewpoint (a sensor at each cloud's origin).
   bool segments = true;
   VoxelGridConfig source_voxel;  // step 1 (res_voxel, Table 3)
