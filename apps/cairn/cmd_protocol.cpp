@@ -167,11 +167,9 @@ int run_protocol(const ProtocolArgs& a) {
       if (!map.empty()) {
         const GlobalRegistrationResult r = register_global(drone.cloud, map, cfg.segmentation, cfg.registration);
         t.score = score_registration(r, drone, truth);
-        const Similarity T_map_world = Similarity::from_isometry(true_objects.map_offset(map).inverse());
-        const Vec3d centre_in_map = T_map_world * truth.site_centre;
-        t.map_offset_m = (centre_in_map - truth.site_centre).norm();
-        t.error_vs_map = registration_error(Similarity::from_isometry(r.T_target_source),
-                                            T_map_world * drone.T_map_metric_true, centre_in_map);
+        const MapRelativeError rel = error_against_map(r.T_target_source, drone, truth, true_objects, map);
+        t.error_vs_map = rel.error;
+        t.map_offset_m = rel.map_offset_m;
         t.rmse = r.rmse;
         t.overlap = r.overlap;
         t.ms = r.timings.total();

@@ -91,4 +91,14 @@ nlohmann::json ScoredRegistration::to_json() const {
           {"objects_score", objects_score}};
 }
 
+MapRelativeError error_against_map(const Eigen::Isometry3d& T_map_source, const MetricDrone& drone,
+                                   const RegistrationTruth& truth, const ObjectSurfaceTruth& true_objects,
+                                   const PointCloud& map) {
+  const Similarity T_map_world = Similarity::from_isometry(true_objects.map_offset(map).inverse());
+  const Vec3d centre_in_map = T_map_world * truth.site_centre;
+  return {.error = registration_error(Similarity::from_isometry(T_map_source), T_map_world * drone.T_map_metric_true,
+                                      centre_in_map),
+          .map_offset_m = (centre_in_map - truth.site_centre).norm()};
+}
+
 }  // namespace cairn::app

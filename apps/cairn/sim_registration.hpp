@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cairn/core/io/run_dir.hpp"
+#include "cairn/mapping/mapper.hpp"
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/registration/scale_recovery.hpp"
 
@@ -42,5 +43,16 @@ struct ScoredRegistration {
 };
 [[nodiscard]] ScoredRegistration score_registration(const GlobalRegistrationResult& r, const MetricDrone& drone,
                                                     const RegistrationTruth& truth);
+
+/// A registration's error against the map as built: the truth moved by the map's own rigid
+/// offset at the stones (ObjectSurfaceTruth::map_offset; the GNSS/INS error no relative
+/// constraint observes), measured at the site centre; and that offset's displacement there.
+struct MapRelativeError {
+  RegistrationError error;
+  double map_offset_m = 0.0;
+};
+[[nodiscard]] MapRelativeError error_against_map(const Eigen::Isometry3d& T_map_source, const MetricDrone& drone,
+                                                 const RegistrationTruth& truth, const ObjectSurfaceTruth& true_objects,
+                                                 const PointCloud& map);
 
 }  // namespace cairn::app

@@ -217,6 +217,8 @@ TEST(Cli, DemoSimulatesMapsRegistersAndSegmentsTheSite) {
   ASSERT_TRUE(reg["accepted"].get<bool>()) << reg.dump();
   EXPECT_LT(reg["rotation_error_deg"].get<double>(), 1.0);
   EXPECT_LT(reg["translation_error_m"].get<double>(), 0.06);
+  EXPECT_LT(reg["error_vs_map"]["rotation_deg"].get<double>(), 0.3);
+  EXPECT_LT(reg["error_vs_map"]["translation_m"].get<double>(), 0.02);
   EXPECT_LT(std::abs(reg["scale_error"].get<double>()), 2e-3);
   EXPECT_GE(reg["matched_segments"].get<int>(), 5);
   // Segmenting the merged map (LiDAR sides + drone tops): most stones whole, none is terrain.
