@@ -252,6 +252,86 @@ TEST(LocalMap, IndexSurvivesGrowthAndErasing) {
   }
 }
 
+// Snapshot smoothing on a noisy dome of radius 0.5 m (a stone's top) and a noisy flat patch:
+// both models remove most of the noise on the flat patch; on the dome the plane flattens the
+// surface (points pulled inside by about ρ²/2R, ~1 cm), the quadratic height field does not; the
+// points-per-voxel count weights the neighbours.
+struct SmoothingError {
+  double rms = 0.0, mean = 0.0;  // of the signed distance to the true surface
+};
+
+TEST(SmoothSurface, QuadraticKeepsCurvedSurfacesWherePlanesFlattenThem) {
+  constexpr double R = 0.5, noise = 0.01;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> gauss(0.0, noise);
+  PointCloud dome, flat;
+  // Fibonacci sphere, ~2 cm spacing, upper half only; flat: a jittered 2 cm grid, 1.2 m square.
+  const int n = int(4.0 * std::numbers::pi * R * R / (0.02 * 0.02));
+  for (int i = 0; i < n; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / n, phi = i * std::numbers::pi * (3.0 - std::sqrt(5.0));
+    if (z < 0.0) continue;
+    const Vec3d u(std::sqrt(1 - z * z) * std::cos(phi), std::sqrt(1 - z * z) * std::sin(phi), z);
+    dome.points.push_back(((R + gauss(rng)) * u).cast<float>());
+  }
+  for (int x = 0; x < 60; ++x)
+    for (int y = 0; y < 60; ++y) flat.points.emplace_back(0.02f * x, 0.02f * y, float(gauss(rng)));
+  for (PointCloud* c : {&dome, &flat}) c->fields.push_back({"count", std::vector<float>(c->size(), 3.0f)});
+
+  const auto dome_error = [&](const PointCloud& c) {  // away from the rim (no neighbours below)
+    SmoothingError e;
+    std::size_t k = 0;
+    for (const Vec3f& p : c.points) {
+      if (p.z() < 0.25 * R) continue;
+      const double d = p.cast<double>().norm() - R;
+      e.rms += d * d, e.mean += d, ++k;
+    }
+    return SmoothingError{std::sqrt(e.rms / k), e.mean / k};
+  };
+  const auto flat_error = [&](const PointCloud& c) {  // away from the border
+    SmoothingError e;
+    std::size_t k = 0;
+    for (const Vec3f& p : c.points) {
+      if (p.x() < 0.2f || p.x() > 1.0f || p.y() < 0.2f || p.y() > 1.0f) continue;
+      e.rms += double(p.z()) * p.z(), e.mean += p.z(), ++k;
+    }
+    return SmoothingError{std::sqrt(e.rms / k), e.mean / k};
+  };
+  LocalMapConfig quadratic, plane;
+  plane.smoothing_quadratic = false;
+  const SmoothingError raw = dome_error(dome), q = dome_error(smooth_surface(dome, quadratic)),
+                       p = dome_error(smooth_surface(dome, plane));
+  std::printf("dome: raw rms %.4f | quadratic rms %.4f mean %+.4f | plane rms %.4f mean %+.4f\n", raw.rms, q.rms,
+              q.mean, p.rms, p.mean);
+  EXPECT_NEAR(raw.rms, noise, 0.002);
+  EXPECT_LT(q.rms, 0.5 * raw.rms);
+  EXPECT_LT(std::abs(q.mean), 0.002);
+  EXPECT_LT(p.mean, -0.006);  // flattened: the dome shrinks
+  EXPECT_GT(p.rms, 1.5 * q.rms);
+
+  const SmoothingError flat_raw = flat_error(flat), fq = flat_error(smooth_surface(flat, quadratic)),
+                       fp = flat_error(smooth_surface(flat, plane));
+  std::printf("flat: raw rms %.4f | quadratic rms %.4f | plane rms %.4f\n", flat_raw.rms, fq.rms, fp.rms);
+  EXPECT_LT(fq.rms, 0.4 * flat_raw.rms);
+  EXPECT_LT(fp.rms, 0.3 * flat_raw.rms);
+
+  // Weights: a checkerboard of voxels at z = 0 seen 9 times and voxels at z = 2 cm seen once. The
+  // count-weighted surface lies at 9:1 (0.2 cm), the unweighted one half-way (1 cm).
+  PointCloud board;
+  std::vector<float> counts;
+  for (int x = 0; x < 60; ++x)
+    for (int y = 0; y < 60; ++y) {
+      board.points.emplace_back(0.02f * x, 0.02f * y, (x + y) % 2 ? 0.02f : 0.0f);
+      counts.push_back((x + y) % 2 ? 1.0f : 9.0f);
+    }
+  board.fields.push_back({"count", counts});
+  PointCloud unweighted = board;
+  unweighted.fields[0].values.assign(board.size(), 1.0f);
+  const SmoothingError weighted_height = flat_error(smooth_surface(board, quadratic));
+  const SmoothingError unweighted_height = flat_error(smooth_surface(unweighted, quadratic));
+  EXPECT_NEAR(weighted_height.mean, 0.002, 0.0005);
+  EXPECT_NEAR(unweighted_height.mean, 0.01, 0.0005);
+}
+
 // ---- Mapper input checks ------------------------------------------------------------------------
 
 TEST(Mapper, BadInputGivesClearErrorsOrWarnings) {

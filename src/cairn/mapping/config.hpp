@@ -114,20 +114,22 @@ struct LocalMapConfig {
   double R_map = 10.0;  // Table 3: local map radius [m] (cylinder around the cabin's axis)
   VoxelGridConfig voxel;  // Table 3: res_voxel = 3 cm, n_min = 1
   int crop_every = 50;  // nodes between crops of the cylinder
-  // Deviation (docs/mapping.md): snapshots project every voxel centroid onto the plane of its
-  // neighbours within this radius (where the neighbourhood is planar), then re-voxelise. With
-  // n_min = 1 the raw voxel grid keeps the sensor's range noise (VLP-16: 3 cm) as a thick shell.
-  // 0 = the paper's plain voxel grid.
+  // Deviation (docs/mapping.md): snapshots move every voxel centroid onto the moving-least-squares
+  // surface of its neighbours within this radius (where they form a surface), then re-voxelise.
+  // With n_min = 1 the raw voxel grid keeps the sensor's range noise (VLP-16: 3 cm) as a thick
+  // shell. 0 = the paper's plain voxel grid.
   double smoothing_radius = 0.15;  // [m]
   double smoothing_max_curvature = 0.3;  // neighbourhoods less planar than this are left as they are
+  bool smoothing_quadratic = true;  // quadratic height field over the local plane (false: the plane)
 
   template <class V>
   void visit(V& v) {
     v("R_map", R_map, "[m] radius of the robot-centric map cylinder (Table 3)");
     v("voxel", voxel, "voxel grid of the map (Table 3)");
     v("crop_every", crop_every, "nodes between two crops of the map cylinder");
-    v("smoothing_radius", smoothing_radius, "[m] snapshot: project points onto local planes of this radius (0: off)");
+    v("smoothing_radius", smoothing_radius, "[m] snapshot: move points onto the local MLS surface of this radius (0: off)");
     v("smoothing_max_curvature", smoothing_max_curvature, "snapshot: only where the curvature is below this");
+    v("smoothing_quadratic", smoothing_quadratic, "snapshot: fit a quadratic height field (false: a plane)");
   }
 };
 

@@ -13,10 +13,14 @@
 
 namespace cairn {
 
-/// Moves every point onto the least-squares plane of its neighbours within `radius` when their
-/// curvature λ0/(λ0+λ1+λ2) is below `max_curvature` (noise removal across the surface, edges and
-/// corners kept), then re-voxelises at `res_voxel` (merged duplicates). TBB-parallel, deterministic.
-[[nodiscard]] PointCloud smooth_surface(const PointCloud& cloud, double radius, double max_curvature, double res_voxel);
+/// Moving-least-squares smoothing of a voxel-grid cloud (config.smoothing_*): every point whose
+/// neighbours within smoothing_radius form a surface (curvature λ0/(λ0+λ1+λ2) below
+/// smoothing_max_curvature; edges and corners are kept) is moved onto the weighted least-squares
+/// plane of the neighbourhood, or with smoothing_quadratic onto a quadratic height field over that
+/// plane (no flattening of curved stone surfaces). Weights: Gaussian in the distance (σ = radius/2)
+/// times the "count" field when present (points per voxel). Then re-voxelised at
+/// config.voxel.res_voxel (merged duplicates). TBB-parallel, deterministic.
+[[nodiscard]] PointCloud smooth_surface(const PointCloud& cloud, const LocalMapConfig& config);
 
 class LocalMap {
  public:
