@@ -307,6 +307,11 @@ TEST(SmoothSurface, QuadraticKeepsCurvedSurfacesWherePlanesFlattenThem) {
   EXPECT_LT(std::abs(q.mean), 0.002);
   EXPECT_LT(p.mean, -0.006);  // flattened: the dome shrinks
   EXPECT_GT(p.rms, 1.5 * q.rms);
+  LocalMapConfig per_point;  // one fit per point instead of one per 6 cm cube: the same surface
+  per_point.smoothing_block = 0.0;
+  const SmoothingError q1 = dome_error(smooth_surface(dome, per_point));
+  EXPECT_NEAR(q1.rms, q.rms, 0.0005);
+  EXPECT_NEAR(q1.mean, q.mean, 0.0005);
 
   const SmoothingError flat_raw = flat_error(flat), fq = flat_error(smooth_surface(flat, quadratic)),
                        fp = flat_error(smooth_surface(flat, plane));

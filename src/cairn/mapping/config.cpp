@@ -44,6 +44,9 @@ void MappingConfig::validate() const {
   require(local_map.voxel.res_voxel > 0.0, "local_map.voxel.res_voxel", "must be > 0");
   require(local_map.voxel.n_min >= 1, "local_map.voxel.n_min", "must be >= 1");
   require(local_map.smoothing_radius >= 0.0, "local_map.smoothing_radius", "must be >= 0");
+  require(local_map.smoothing_block >= 0.0 &&
+              (local_map.smoothing_radius == 0.0 || local_map.smoothing_block <= local_map.smoothing_radius),
+          "local_map.smoothing_block", "must be in [0, smoothing_radius]");
   require(local_map.crop_every >= 1, "local_map.crop_every", "must be >= 1");
 }
 

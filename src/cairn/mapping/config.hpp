@@ -121,6 +121,9 @@ struct LocalMapConfig {
   double smoothing_radius = 0.15;  // [m]
   double smoothing_max_curvature = 0.3;  // neighbourhoods less planar than this are left as they are
   bool smoothing_quadratic = true;  // quadratic height field over the local plane (false: the plane)
+  // One surface is fitted per cube of this side (around the mean of its points) and used for all
+  // of them: 4x faster than one fit per point at the same accuracy (docs/mapping.md). 0: per point.
+  double smoothing_block = 0.06;  // [m]
 
   template <class V>
   void visit(V& v) {
@@ -130,6 +133,7 @@ struct LocalMapConfig {
     v("smoothing_radius", smoothing_radius, "[m] snapshot: move points onto the local MLS surface of this radius (0: off)");
     v("smoothing_max_curvature", smoothing_max_curvature, "snapshot: only where the curvature is below this");
     v("smoothing_quadratic", smoothing_quadratic, "snapshot: fit a quadratic height field (false: a plane)");
+    v("smoothing_block", smoothing_block, "[m] snapshot: one fitted surface per cube of this side (0: per point)");
   }
 };
 

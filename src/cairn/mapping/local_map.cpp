@@ -1,7 +1,7 @@
 #include "cairn/mapping/local_map.hpp"
 
+#include <algorithm>
 #include <cmath>
-#include <optional>
 
 #include <Eigen/Eigenvalues>
 
@@ -120,67 +120,77 @@ PointCloud LocalMap::snapshot() const {
 
 namespace {
 
-// Moving least squares at one point: the weighted plane of its neighbourhood, and over it (when
-// `quadratic`) a weighted quadratic height field. Returns the point moved onto that surface, or
-// nothing where the neighbourhood is too small or not a surface.
+// Moving least squares around one anchor: the weighted plane of the anchor's neighbourhood and,
+// over it (when `quadratic`), a weighted quadratic height field h(x, y) = a0 + a1 x + a2 y +
+// a3 x^2 + a4 xy + a5 y^2, with x and y scaled by 1/radius (conditioning) and centred at the
+// weighted mean. Not valid where the neighbourhood is too small or not a surface.
+struct LocalSurface {
+  bool valid = false;
+  Eigen::Vector3d mean, n, e1, e2;
+  Eigen::Matrix<double, 6, 1> a = Eigen::Matrix<double, 6, 1>::Zero();  // zero: the plane
+
+  /// `p` moved along the normal onto the surface.
+  [[nodiscard]] Vec3f project(const Vec3f& p, double radius) const {
+    const Eigen::Vector3d d = p.cast<double>() - mean;
+    const double x = d.dot(e1) / radius, y = d.dot(e2) / radius;
+    const double h_fit = a[0] + a[1] * x + a[2] * y + a[3] * x * x + a[4] * x * y + a[5] * y * y;
+    return (p.cast<double>() - n * (d.dot(n) - h_fit)).cast<float>();
+  }
+};
+
 struct SmoothingScratch {
   Neighbors nb;
   std::vector<double> weights;
 };
 
-std::optional<Vec3f> mls_project(const PointCloud& cloud, const float* count, const KdTree& tree, std::size_t i,
-                                 const LocalMapConfig& c, SmoothingScratch& s) {
+LocalSurface fit_local_surface(const PointCloud& cloud, const float* count, const KdTree& tree,
+                               const Eigen::Vector3d& anchor, const LocalMapConfig& c, SmoothingScratch& s) {
   constexpr std::size_t kMinPlane = 6, kMinQuadratic = 10;  // 3 and 6 unknowns, with margin
-  const Vec3f& p = cloud.points[i];
-  tree.radius(p, float(c.smoothing_radius), s.nb);
-  if (s.nb.size() < (c.smoothing_quadratic ? kMinQuadratic : kMinPlane)) return std::nullopt;
-  // Gaussian weights (sigma = radius / 2) times the number of hits of the voxel: a centroid of n
-  // returns carries 1/n of a single return's range-noise variance.
+  LocalSurface f;
+  tree.radius(anchor.cast<float>(), float(c.smoothing_radius), s.nb);
+  if (s.nb.size() < (c.smoothing_quadratic ? kMinQuadratic : kMinPlane)) return f;
+  // Gaussian weights (sigma = radius / 2) times the number of returns of the voxel: a centroid of
+  // n returns carries 1/n of a single return's range-noise variance.
   const double inv_two_sigma2 = 2.0 / (c.smoothing_radius * c.smoothing_radius);
-  const Eigen::Vector3d ref = p.cast<double>();
   s.weights.resize(s.nb.size());
   double wsum = 0.0;
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d sq = Eigen::Matrix3d::Zero();
   for (std::size_t k = 0; k < s.nb.size(); ++k) {
-    const double w = std::exp(-double(s.nb.sq_dists[k]) * inv_two_sigma2) * (count ? double(count[s.nb.indices[k]]) : 1.0);
-    const Eigen::Vector3d d = cloud.points[s.nb.indices[k]].cast<double>() - ref;
+    const Eigen::Vector3d d = cloud.points[s.nb.indices[k]].cast<double>() - anchor;
+    const double w = std::exp(-d.squaredNorm() * inv_two_sigma2) * (count ? double(count[s.nb.indices[k]]) : 1.0);
     s.weights[k] = w;
     wsum += w;
     sum += w * d;
     sq += w * d * d.transpose();
   }
-  if (!(wsum > 0.0)) return std::nullopt;
-  const Eigen::Vector3d mean = sum / wsum;  // relative to p
-  const Eigen::Matrix3d cov = sq / wsum - mean * mean.transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  if (!(wsum > 0.0)) return f;
+  const Eigen::Vector3d mean = sum / wsum;  // relative to the anchor
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(sq / wsum - mean * mean.transpose());
   const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);
-  if (!(ev.sum() > 0.0) || ev[0] / ev.sum() > c.smoothing_max_curvature) return std::nullopt;
-  const Eigen::Vector3d n = es.eigenvectors().col(0);
-  const double h_p = -n.dot(mean);  // height of p above the plane
-  if (!c.smoothing_quadratic) return (ref - n * h_p).cast<float>();
-  // Height field h(x, y) = a0 + a1 x + a2 y + a3 x^2 + a4 xy + a5 y^2 over the plane, x and y
-  // scaled by 1/radius (conditioning), centred at the mean.
-  const Eigen::Vector3d e1 = es.eigenvectors().col(2), e2 = es.eigenvectors().col(1);
-  const double scale = 1.0 / c.smoothing_radius;
+  if (!(ev.sum() > 0.0) || ev[0] / ev.sum() > c.smoothing_max_curvature) return f;
+  f.valid = true;
+  f.mean = anchor + mean;
+  f.n = es.eigenvectors().col(0);
+  f.e1 = es.eigenvectors().col(2);
+  f.e2 = es.eigenvectors().col(1);
+  if (!c.smoothing_quadratic) return f;
   Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
   for (std::size_t k = 0; k < s.nb.size(); ++k) {
-    const Eigen::Vector3d d = cloud.points[s.nb.indices[k]].cast<double>() - ref - mean;
-    const double x = d.dot(e1) * scale, y = d.dot(e2) * scale;
+    const Eigen::Vector3d d = cloud.points[s.nb.indices[k]].cast<double>() - f.mean;
+    const double x = d.dot(f.e1) / c.smoothing_radius, y = d.dot(f.e2) / c.smoothing_radius;
     Eigen::Matrix<double, 6, 1> phi;
     phi << 1.0, x, y, x * x, x * y, y * y;
     A.selfadjointView<Eigen::Lower>().rankUpdate(phi, s.weights[k]);
-    b += s.weights[k] * d.dot(n) * phi;
+    b += s.weights[k] * d.dot(f.n) * phi;
   }
   A = A.selfadjointView<Eigen::Lower>();
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(A);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return (ref - n * h_p).cast<float>();
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return f;  // the plane
   const Eigen::Matrix<double, 6, 1> a = ldlt.solve(b);
-  const double x = -mean.dot(e1) * scale, y = -mean.dot(e2) * scale;
-  const double h_fit = a[0] + a[1] * x + a[2] * y + a[3] * x * x + a[4] * x * y + a[5] * y * y;
-  if (!std::isfinite(h_fit)) return (ref - n * h_p).cast<float>();
-  return (ref - n * (h_p - h_fit)).cast<float>();
+  if (a.allFinite()) f.a = a;
+  return f;
 }
 
 }  // namespace
@@ -188,16 +198,42 @@ std::optional<Vec3f> mls_project(const PointCloud& cloud, const float* count, co
 PointCloud smooth_surface(const PointCloud& cloud, const LocalMapConfig& config) {
   PointCloud out;
   out.origin = cloud.origin;
-  out.points.resize(cloud.size());
+  out.points = cloud.points;
   if (cloud.empty()) return out;
   const float* count = nullptr;
   for (const ScalarField& f : cloud.fields)
     if (f.name == "count" && f.values.size() == cloud.size()) count = f.values.data();
   const KdTree tree(cloud.points);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cloud.size(), 1024), [&](const auto& r) {
+  // Groups of points that share one fitted surface: the cubes of side smoothing_block, each fitted
+  // around the mean of its points (or every point alone around itself).
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order(cloud.size());
+  const double block = config.smoothing_block;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3f& p = cloud.points[i];
+    const std::uint64_t key = block > 0.0 ? CellMap::key(std::int64_t(std::floor(p.x() / block)),
+                                                         std::int64_t(std::floor(p.y() / block)),
+                                                         std::int64_t(std::floor(p.z() / block)))
+                                          : std::uint64_t(i);
+    order[i] = {key, std::uint32_t(i)};
+  }
+  if (block > 0.0) std::sort(order.begin(), order.end());
+  std::vector<std::size_t> starts;
+  for (std::size_t i = 0; i < order.size(); ++i)
+    if (i == 0 || order[i].first != order[i - 1].first) starts.push_back(i);
+  starts.push_back(order.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, starts.size() - 1, 256), [&](const auto& r) {
     SmoothingScratch scratch;
-    for (std::size_t i = r.begin(); i != r.end(); ++i)
-      out.points[i] = mls_project(cloud, count, tree, i, config, scratch).value_or(cloud.points[i]);
+    for (std::size_t g = r.begin(); g != r.end(); ++g) {
+      Eigen::Vector3d anchor = Eigen::Vector3d::Zero();
+      for (std::size_t k = starts[g]; k < starts[g + 1]; ++k) anchor += cloud.points[order[k].second].cast<double>();
+      anchor /= double(starts[g + 1] - starts[g]);
+      const LocalSurface f = fit_local_surface(cloud, count, tree, anchor, config, scratch);
+      if (!f.valid) continue;
+      for (std::size_t k = starts[g]; k < starts[g + 1]; ++k) {
+        const std::uint32_t i = order[k].second;
+        out.points[i] = f.project(cloud.points[i], config.smoothing_radius);
+      }
+    }
   });
   return voxel_downsample(out, {.res_voxel = config.voxel.res_voxel, .n_min = 1});
 }

@@ -18,7 +18,9 @@ namespace cairn {
 /// smoothing_max_curvature; edges and corners are kept) is moved onto the weighted least-squares
 /// plane of the neighbourhood, or with smoothing_quadratic onto a quadratic height field over that
 /// plane (no flattening of curved stone surfaces). Weights: Gaussian in the distance (σ = radius/2)
-/// times the "count" field when present (points per voxel). Then re-voxelised at
+/// times the "count" field when present (points per voxel). One surface is fitted per cube of side
+/// smoothing_block (around the mean of its points) and moves all of them; 0 fits one per point.
+/// Then re-voxelised at
 /// config.voxel.res_voxel (merged duplicates). TBB-parallel, deterministic.
 [[nodiscard]] PointCloud smooth_surface(const PointCloud& cloud, const LocalMapConfig& config);
 
