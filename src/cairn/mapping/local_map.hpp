@@ -20,8 +20,7 @@ namespace cairn {
 /// plane (no flattening of curved stone surfaces). Weights: Gaussian in the distance (σ = radius/2)
 /// times the "count" field when present (points per voxel). One surface is fitted per cube of side
 /// smoothing_block (around the mean of its points) and moves all of them; 0 fits one per point.
-/// Then re-voxelised at
-/// config.voxel.res_voxel (merged duplicates). TBB-parallel, deterministic.
+/// Then re-voxelised at config.voxel.res_voxel (merged duplicates). TBB-parallel, deterministic.
 [[nodiscard]] PointCloud smooth_surface(const PointCloud& cloud, const LocalMapConfig& config);
 
 class LocalMap {
