@@ -235,7 +235,9 @@ Mapper::Match Mapper::match_scan(const std::vector<Vec3f>& source, const Eigen::
   const ScanMatchingConfig& sm = config_.scan_matching;
   Stopwatch sw;
   Match m{.center = submap.center, .loop = loop};
-  Eigen::Isometry3d T_anchor_init = T_init;
+  // The submap holds its nodes at their poses when it was built; the graph has moved them since
+  // (window updates, reoptimize()): the guess goes into the submap's frame through its centre.
+  Eigen::Isometry3d T_anchor_init = submap.T_world_center * graph_.pose(int(submap.center)).inverse() * T_init;
   T_anchor_init.translation() -= submap.anchor;
   const IcpResult r = register_icp(source, *submap.target, T_anchor_init, sm.icp);
   m.ms = sw.elapsed_ms();
@@ -376,6 +378,15 @@ void Mapper::finish() {
   timings_.add("final_optimisation", sw.lap_ms());
   if (config_.rebuild_on_finish) rebuild_map();
   timings_.add("map_rebuild", sw.lap_ms());
+}
+
+void Mapper::reoptimize() {
+  sync_background(false);
+  Stopwatch sw;
+  graph_.optimize(0, config_.pose_graph.final_iterations);
+  timings_.add("reoptimisation", sw.lap_ms());
+  rebuild_map();
+  timings_.add("reoptimisation_rebuild", sw.lap_ms());
 }
 
 std::size_t Mapper::remove_sphere(const Vec3d& center, double radius) {

@@ -69,6 +69,10 @@ class Mapper {
   void flush();
   /// flush(), full optimisation, and (config.rebuild_on_finish) the map rebuilt from final poses.
   void finish();
+  /// Full optimisation of every node (not only the newest window) and the map rebuilt from the
+  /// new poses, mid-stream: the map's absolute frame follows the mean of all GNSS/INS priors so
+  /// far instead of staying where the first window's priors put it.
+  void reoptimize();
 
   // ---- outputs ------------------------------------------------------------------------------
   [[nodiscard]] PointCloud map() const {
