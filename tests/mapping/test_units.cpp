@@ -347,6 +347,9 @@ TEST(Mapper, BadInputGivesClearErrorsOrWarnings) {
   EXPECT_THROW(Mapper({.robot = robot, .T_cabin_sensor = {{"H", Eigen::Isometry3d::Identity()}}}, bad), ConfigError);
 
   Mapper mapper({.robot = robot, .T_cabin_sensor = {{"H", pose(0, {0.95, 1.0, 2.5})}, {"V", pose(0, {0.95, -1.2, 2.5})}}});
+  mapper.reoptimize();  // nothing mapped yet: a no-op, not a crash
+  EXPECT_TRUE(mapper.map().empty());
+  EXPECT_TRUE(mapper.trajectory().empty());
   PointCloud sweep;
   sweep.points = {Vec3f(8, 0, -3), Vec3f(NAN, 0, 0), Vec3f(8, 1, -3)};
   sweep.times = {0.01, 0.02, 0.03};
