@@ -126,18 +126,24 @@ Overlap mutual_overlap(std::span<const Vec3f> source, std::span<const Vec3f> tar
   const Eigen::Isometry3f Tf = T.cast<float>();
   for (std::size_t i = 0; i < source.size(); ++i) moved[i] = Tf * source[i];
   const KdTree tt(target), ts(moved);
+  // Fixed chunks summed in order: the same result on any number of threads.
   const auto sum_within = [distance](std::span<const Vec3f> q, const KdTree& tree) {
-    double sq = 0.0;
-    std::size_t n = 0;
-    Neighbors nn;
-    for (const Vec3f& p : q) {
-      tree.knn(p, 1, nn);
-      if (nn.size() == 1 && double(nn.sq_dists[0]) < distance * distance) {
-        sq += double(nn.sq_dists[0]);
-        ++n;
+    constexpr std::size_t kChunk = 1024;
+    const std::size_t chunks = (q.size() + kChunk - 1) / kChunk;
+    std::vector<double> sq(chunks, 0.0);
+    std::vector<std::size_t> n(chunks, 0);
+    if (tree.size() == 0) return std::pair{0.0, std::size_t{0}};
+    tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
+      for (std::size_t i = c * kChunk; i < std::min(q.size(), (c + 1) * kChunk); ++i) {
+        float d2 = 0.0f;
+        (void)tree.nearest(q[i], &d2);
+        if (double(d2) < distance * distance) {
+          sq[c] += double(d2);
+          ++n[c];
+        }
       }
-    }
-    return std::pair{sq, n};
+    });
+    return std::pair{std::accumulate(sq.begin(), sq.end(), 0.0), std::accumulate(n.begin(), n.end(), std::size_t{0})};
   };
   const auto [sq_s, n_s] = sum_within(moved, tt);
   const auto [sq_t, n_t] = sum_within(target, ts);
@@ -239,9 +245,9 @@ bool already_tried(const std::vector<Eigen::Isometry3d>& tried, const Eigen::Iso
   });
 }
 
-/// The two ICP passes of step 5 from T: coarse_correspondence_distance, then the configured one.
-/// A pass that fails (too few pairs, degenerate) leaves T as it was. Returns T and the second
-/// pass's RMSE.
+/// The two ICP passes of step 5 from T: coarse_correspondence_distance on the source thinned to
+/// coarse_source_voxel, then the configured one on every point. A pass that fails (too few pairs,
+/// degenerate) leaves T as it was. Returns T and the second pass's RMSE.
 std::pair<Eigen::Isometry3d, double> refine_two_pass(std::span<const Vec3f> source, const IcpTarget& target,
                                                      Eigen::Isometry3d T, const GlobalRegistrationConfig& cfg) {
   IcpConfig icp = cfg.icp;
@@ -251,7 +257,13 @@ std::pair<Eigen::Isometry3d, double> refine_two_pass(std::span<const Vec3f> sour
   const auto usable = [](const IcpResult& x) {
     return x.status != IcpStatus::too_few_correspondences && x.status != IcpStatus::degenerate;
   };
-  const IcpResult r1 = register_icp(source, target, T, coarse);
+  PointCloud thinned;
+  if (cfg.coarse_source_voxel > 0.0) {
+    thinned.points.assign(source.begin(), source.end());
+    thinned = voxel_downsample(thinned, {.res_voxel = cfg.coarse_source_voxel, .n_min = 1});
+  }
+  const IcpResult r1 = register_icp(cfg.coarse_source_voxel > 0.0 ? std::span<const Vec3f>(thinned.points) : source,
+                                    target, T, coarse);
   if (usable(r1)) T = r1.T_target_source;
   const IcpResult r2 = register_icp(source, target, T, icp);
   if (usable(r2)) T = r2.T_target_source;
@@ -359,6 +371,8 @@ void GlobalRegistrationConfig::validate() const {
   if (max_refinements < 1) throw ConfigError("registration.max_refinements must be at least 1");
   if (!(coarse_correspondence_distance > 0.0))
     throw ConfigError("registration.coarse_correspondence_distance must be positive");
+  if (!(coarse_source_voxel >= 0.0))
+    throw ConfigError("registration.coarse_source_voxel must be 0 (every point) or a positive voxel size");
   if (!(acceptance.e_icp > 0.0)) throw ConfigError("registration.acceptance.e_icp must be positive");
   if (!(acceptance.overlap_distance > 0.0)) throw ConfigError("registration.acceptance.overlap_distance must be positive");
   if (!(acceptance.min_overlap >= 0.0 && acceptance.min_overlap <= 1.0))

@@ -119,6 +119,9 @@ struct GlobalRegistrationConfig {
   /// ICP runs twice: first with this correspondence distance (the coarse transform from a
   /// consistency group is decimetres off), then with icp.max_correspondence_distance.
   double coarse_correspondence_distance = 0.4;
+  /// The first pass only brings the candidate into the second one's basin: it runs on the source
+  /// thinned by a voxel grid of this size (0: every point); the second pass uses every point.
+  double coarse_source_voxel = 0.05;  // [m]
   RegistrationAcceptanceConfig acceptance;
   bool gravity_aligned = false;  // source z is up: 4-DoF candidates and ICP
   LevellingConfig levelling;     // when not gravity_aligned
@@ -155,6 +158,8 @@ struct GlobalRegistrationConfig {
     v("icp", icp, "ICP refinement on the matched segments");
     v("coarse_correspondence_distance", coarse_correspondence_distance,
       "correspondence distance of the first ICP pass from the coarse transform [m]");
+    v("coarse_source_voxel", coarse_source_voxel,
+      "voxel size thinning the source for the first ICP pass (0: every point) [m]");
     v("acceptance", acceptance, "acceptance test of a refined candidate");
     v("gravity_aligned", gravity_aligned, "the source's z axis is up: 4-DoF candidates and ICP");
     v("levelling", levelling, "turning an arbitrarily rotated source's ground onto the target's");
