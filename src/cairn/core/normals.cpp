@@ -12,16 +12,26 @@ namespace cairn {
 PcaFrame pca(std::span<const Vec3f> points, std::span<const std::uint32_t> indices) {
   // Covariance accumulated in double around the first point for numerical stability.
   const Eigen::Vector3d ref = points[indices[0]].cast<double>();
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d sq = Eigen::Matrix3d::Zero();
+  // The six distinct second moments only (the matrix is symmetric).
+  double sx = 0, sy = 0, sz = 0, xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
   for (auto i : indices) {
-    const Eigen::Vector3d d = points[i].cast<double>() - ref;
-    sum += d;
-    sq += d * d.transpose();
+    const double x = double(points[i].x()) - ref.x(), y = double(points[i].y()) - ref.y(),
+                 z = double(points[i].z()) - ref.z();
+    sx += x;
+    sy += y;
+    sz += z;
+    xx += x * x;
+    xy += x * y;
+    xz += x * z;
+    yy += y * y;
+    yz += y * z;
+    zz += z * z;
   }
   const double n = double(indices.size());
-  const Eigen::Vector3d mean = sum / n;
-  const Eigen::Matrix3d cov = sq / n - mean * mean.transpose();
+  const Eigen::Vector3d mean(sx / n, sy / n, sz / n);
+  Eigen::Matrix3d cov;
+  cov << xx / n, xy / n, xz / n, xy / n, yy / n, yz / n, xz / n, yz / n, zz / n;
+  cov -= mean * mean.transpose();
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
   return {(ref + mean).cast<float>(), es.eigenvectors().cast<float>(),
           es.eigenvalues().cwiseMax(0.0).cast<float>()};
