@@ -141,6 +141,14 @@ TEST(Cli, ProtocolRegistersWhileMapping) {
   EXPECT_TRUE(std::filesystem::exists(dir / "protocol.json"));
   EXPECT_TRUE(std::filesystem::exists(dir / "trials.png"));
   EXPECT_NE(r.err.find("t = 10.0 s"), std::string::npos);  // progress on stderr
+  // --windowed-map: the map as the windowed updates left it, no reoptimisation.
+  const CmdResult w =
+      run("protocol --seeds 1 --first-seed 3 --duration 5 --every 5 --windowed-map --out " + (dir / "windowed").string());
+  ASSERT_EQ(w.code, 0) << w.err;
+  const auto jw = nlohmann::json::parse(w.out);
+  EXPECT_TRUE(jw["windowed_map"].get<bool>());
+  EXPECT_EQ(jw["all"]["trials"].get<int>(), 1);
+  EXPECT_LT(jw["all"]["reoptimize_ms_median"].get<double>(), 1.0);  // only the stopwatch itself
 }
 
 }  // namespace
