@@ -166,9 +166,11 @@ int run_protocol(const ProtocolArgs& a) {
       t.time = time;
       // The map as the mapper would hand it to registration: every node reoptimised, so its
       // absolute frame follows all GNSS/INS priors so far, not only the first window's.
-      Stopwatch reopt;
-      if (!a.windowed_map) mapper.reoptimize();
-      t.reoptimize_ms = reopt.elapsed_ms();
+      if (!a.windowed_map) {
+        Stopwatch reopt;
+        mapper.reoptimize();
+        t.reoptimize_ms = reopt.elapsed_ms();
+      }
       const PointCloud map = mapper.map();
       t.map_points = map.size();
       if (!map.empty()) {
@@ -225,7 +227,7 @@ int run_protocol(const ProtocolArgs& a) {
       wrong += t.false_positive();
       ms.push_back(t.ms);
       reopt_ms.push_back(t.reoptimize_ms);
-      offsets.push_back(t.map_offset_m);
+      if (t.map_points > 0) offsets.push_back(t.map_offset_m);  // an empty map has no offset
       if (t.score.success) {
         rot.push_back(t.score.error.rotation_deg);
         trans.push_back(t.score.error.translation_m);

@@ -136,8 +136,7 @@ TEST(Cli, ProtocolRegistersWhileMapping) {
   EXPECT_LT(j["all"]["translation_error_vs_map_m"]["max"].get<double>(), 0.02);
   // Each registration got a reoptimised map (full pose graph, map rebuilt), not the windowed one.
   EXPECT_FALSE(j["windowed_map"].get<bool>());
-  EXPECT_GT(j["all"]["reoptimize_ms_median"].get<double>(), 0.0);
-  EXPECT_GT(j["all"]["map_offset_m"]["max"].get<double>(), 0.0);
+  EXPECT_GT(j["all"]["reoptimize_ms_median"].get<double>(), 1.0);  // a full solve + rebuild: tens of ms
   EXPECT_TRUE(std::filesystem::exists(dir / "protocol.json"));
   EXPECT_TRUE(std::filesystem::exists(dir / "trials.png"));
   EXPECT_NE(r.err.find("t = 10.0 s"), std::string::npos);  // progress on stderr
@@ -148,7 +147,7 @@ TEST(Cli, ProtocolRegistersWhileMapping) {
   const auto jw = nlohmann::json::parse(w.out);
   EXPECT_TRUE(jw["windowed_map"].get<bool>());
   EXPECT_EQ(jw["all"]["trials"].get<int>(), 1);
-  EXPECT_LT(jw["all"]["reoptimize_ms_median"].get<double>(), 1.0);  // only the stopwatch itself
+  EXPECT_EQ(jw["all"]["reoptimize_ms_median"].get<double>(), 0.0);
 }
 
 }  // namespace

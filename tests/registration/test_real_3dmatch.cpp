@@ -45,7 +45,7 @@ TEST(Real3DMatch, FragmentsRegisterWithoutSegments) {
   // of the reference; the 1 cm check against the optimum is the sharp one). The objective is flat about an axis through the
   // centroid: runs from the two starts end ~0.6° apart but within a millimetre at the centroid.
   const IcpTarget target = IcpTarget::from_cloud(p.target, cfg.normals);
-  IcpConfig icp = cfg.icp;  // the same two passes as the registration's refinement
+  IcpConfig icp = cfg.icp;  // the registration's two passes, both on every source point
   icp.max_correspondence_distance = cfg.coarse_correspondence_distance;
   Eigen::Isometry3d T_opt = register_icp(p.source.points, target, p.T_gt, icp).T_target_source;
   T_opt = register_icp(p.source.points, target, T_opt, cfg.icp).T_target_source;

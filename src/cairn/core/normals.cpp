@@ -12,7 +12,8 @@ namespace cairn {
 PcaFrame pca(std::span<const Vec3f> points, std::span<const std::uint32_t> indices) {
   // Covariance accumulated in double around the first point for numerical stability.
   const Eigen::Vector3d ref = points[indices[0]].cast<double>();
-  // The six distinct second moments only (the matrix is symmetric).
+  // The six distinct second moments only (the matrix is symmetric): the same products and sums
+  // per entry as the full outer product (bit-identical unless the compiler contracts to FMA).
   double sx = 0, sy = 0, sz = 0, xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
   for (auto i : indices) {
     const double x = double(points[i].x()) - ref.x(), y = double(points[i].y()) - ref.y(),

@@ -71,7 +71,8 @@ class Mapper {
   void finish();
   /// Full optimisation of every node (not only the newest window) and the map rebuilt from the
   /// new poses, mid-stream: the map's absolute frame follows the mean of all GNSS/INS priors so
-  /// far instead of staying where the first window's priors put it.
+  /// far instead of staying where the first window's priors put it. remove_sphere / insert edits
+  /// are replayed in world coordinates (they do not move with the scans).
   void reoptimize();
 
   // ---- outputs ------------------------------------------------------------------------------

@@ -258,12 +258,17 @@ std::pair<Eigen::Isometry3d, double> refine_two_pass(std::span<const Vec3f> sour
     return x.status != IcpStatus::too_few_correspondences && x.status != IcpStatus::degenerate;
   };
   PointCloud thinned;
+  std::span<const Vec3f> coarse_source = source;
   if (cfg.coarse_source_voxel > 0.0) {
     thinned.points.assign(source.begin(), source.end());
     thinned = voxel_downsample(thinned, {.res_voxel = cfg.coarse_source_voxel, .n_min = 1});
+    // A small segment set keeps every point unless thinning leaves kCoarseMinPairsFactor times
+    // ICP's minimum of pairs (only the overlapping part of the source finds pairs).
+    constexpr std::size_t kCoarseMinPairsFactor = 4;
+    if (thinned.size() >= kCoarseMinPairsFactor * std::size_t(std::max(coarse.min_correspondences, 1)))
+      coarse_source = thinned.points;
   }
-  const IcpResult r1 = register_icp(cfg.coarse_source_voxel > 0.0 ? std::span<const Vec3f>(thinned.points) : source,
-                                    target, T, coarse);
+  const IcpResult r1 = register_icp(coarse_source, target, T, coarse);
   if (usable(r1)) T = r1.T_target_source;
   const IcpResult r2 = register_icp(source, target, T, icp);
   if (usable(r2)) T = r2.T_target_source;
