@@ -358,8 +358,9 @@ void Mapper::rebuild_map() {
   auto apply_edits = [&](std::size_t after) {
     for (const Edit& e : edits_) {
       if (e.after_node != after) continue;
-      if (e.sphere) map_.remove_sphere(e.sphere->first, e.sphere->second);
-      else map_.insert(e.points);
+      const Eigen::Isometry3d D = edit_motion(e);
+      if (e.sphere) map_.remove_sphere(D * e.sphere->first, e.sphere->second);
+      else map_.insert(e.points.points, D * Eigen::Translation3d(e.points.origin));
     }
   };
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -389,18 +390,29 @@ void Mapper::reoptimize() {
   timings_.add("reoptimisation_rebuild", sw.lap_ms());
 }
 
+Eigen::Isometry3d Mapper::edit_motion(const Edit& e) const {
+  if (e.after_node == 0) return Eigen::Isometry3d::Identity();
+  return graph_.pose(int(e.after_node - 1)) * e.T_world_anchor.inverse();
+}
+
+void Mapper::record_edit(Edit e) {
+  e.after_node = nodes_.size();
+  if (!nodes_.empty()) e.T_world_anchor = graph_.pose(int(nodes_.size() - 1));
+  edits_.push_back(std::move(e));
+}
+
 std::size_t Mapper::remove_sphere(const Vec3d& center, double radius) {
   if (!center.allFinite() || !std::isfinite(radius) || radius < 0)
     throw InputError("mapping: remove_sphere needs a finite centre and radius >= 0");
   sync_background(true);
-  edits_.push_back({.after_node = nodes_.size(), .sphere = std::make_pair(center, radius), .points = {}});
+  record_edit({.sphere = std::make_pair(center, radius)});
   return map_.remove_sphere(center, radius);
 }
 
 void Mapper::insert(const PointCloud& points) {
   points.check_finite("mapping: inserted points");
   sync_background(true);
-  edits_.push_back({.after_node = nodes_.size(), .sphere = std::nullopt, .points = points});
+  record_edit({.sphere = std::nullopt, .points = points});
   map_.insert(points);
 }
 

@@ -72,7 +72,7 @@ class Mapper {
   /// Full optimisation of every node (not only the newest window) and the map rebuilt from the
   /// new poses, mid-stream: the map's absolute frame follows the mean of all GNSS/INS priors so
   /// far instead of staying where the first window's priors put it. remove_sphere / insert edits
-  /// are replayed in world coordinates (they do not move with the scans).
+  /// are replayed moved with the node that was newest when they were made.
   void reoptimize();
 
   // ---- outputs ------------------------------------------------------------------------------
@@ -116,11 +116,17 @@ class Mapper {
     Vec3d anchor;                      // target points are relative to this world position
     std::shared_ptr<const IcpTarget> target;
   };
+  /// A map edit, made in the map as it stood after node after_node - 1 (whose pose then was
+  /// T_world_anchor): a rebuild moves it with that node, as the scans around it move.
   struct Edit {
     std::size_t after_node = 0;
     std::optional<std::pair<Vec3d, double>> sphere;
     PointCloud points;
+    Eigen::Isometry3d T_world_anchor = Eigen::Isometry3d::Identity();
   };
+  /// The edit's anchor-node motion since it was made (identity before the first node).
+  [[nodiscard]] Eigen::Isometry3d edit_motion(const Edit& e) const;
+  void record_edit(Edit e);
 
   void process_pair(const Pending* h, const Pending* v);
   void add_node(ScanPair pair, const Eigen::Isometry3d& T_world_H_raw);
