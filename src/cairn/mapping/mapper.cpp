@@ -353,7 +353,7 @@ void Mapper::update_map(std::size_t i) {
     map_.crop((graph_.pose(int(i)) * T_cabin_H_.inverse()).translation());
 }
 
-void Mapper::rebuild_map() {
+void Mapper::rebuild_map(bool final_crop) {
   map_.clear();
   auto apply_edits = [&](std::size_t after) {
     for (const Edit& e : edits_) {
@@ -368,26 +368,27 @@ void Mapper::rebuild_map() {
     update_map(i);
   }
   apply_edits(nodes_.size());
-  if (!nodes_.empty()) map_.crop(current_pose().translation());
+  if (final_crop && !nodes_.empty()) map_.crop(current_pose().translation());
+}
+
+void Mapper::solve_all(const char* solve_timing, bool rebuild, bool final_crop, const char* rebuild_timing) {
+  Stopwatch sw;
+  graph_.optimize(0, config_.pose_graph.final_iterations);
+  timings_.add(solve_timing, sw.lap_ms());
+  if (rebuild) rebuild_map(final_crop);
+  timings_.add(rebuild_timing, sw.lap_ms());
 }
 
 void Mapper::finish() {
   flush();
   sync_background(true);
-  Stopwatch sw;
-  graph_.optimize(0, config_.pose_graph.final_iterations);
-  timings_.add("final_optimisation", sw.lap_ms());
-  if (config_.rebuild_on_finish) rebuild_map();
-  timings_.add("map_rebuild", sw.lap_ms());
+  solve_all("final_optimisation", config_.rebuild_on_finish, /*final_crop=*/true, "map_rebuild");
 }
 
 void Mapper::reoptimize() {
   sync_background(false);
-  Stopwatch sw;
-  graph_.optimize(0, config_.pose_graph.final_iterations);
-  timings_.add("reoptimisation", sw.lap_ms());
-  rebuild_map();
-  timings_.add("reoptimisation_rebuild", sw.lap_ms());
+  // The same content as the streaming map (cropped every crop_every nodes only), at the new poses.
+  solve_all("reoptimisation", /*rebuild=*/true, /*final_crop=*/false, "reoptimisation_rebuild");
 }
 
 Eigen::Isometry3d Mapper::edit_motion(const Edit& e) const {

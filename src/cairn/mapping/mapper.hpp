@@ -148,7 +148,11 @@ class Mapper {
   void sync_background(bool all);
   [[nodiscard]] const Submap* find_loop_submap(const Eigen::Isometry3d& T_world_H, double time) const;
   void update_map(std::size_t node);
-  void rebuild_map();
+  /// The map from every node at its current pose, edits replayed; final_crop: then cropped to
+  /// R_map around the newest node (else only the crops every crop_every nodes, as when streaming).
+  void rebuild_map(bool final_crop);
+  /// Full optimisation, then (rebuild) the map rebuilt; timed under the two names.
+  void solve_all(const char* solve_timing, bool rebuild, bool final_crop, const char* rebuild_timing);
   [[nodiscard]] Eigen::Isometry3d T_world_cabin_estimate(double t) const;
 
   MappingConfig config_;

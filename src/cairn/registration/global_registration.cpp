@@ -128,11 +128,11 @@ Overlap mutual_overlap(std::span<const Vec3f> source, std::span<const Vec3f> tar
   const KdTree tt(target), ts(moved);
   // Fixed chunks summed in order: the same result on any number of threads.
   const auto sum_within = [distance](std::span<const Vec3f> q, const KdTree& tree) {
+    if (tree.size() == 0) return std::pair{0.0, std::size_t{0}};
     constexpr std::size_t kChunk = 1024;
     const std::size_t chunks = (q.size() + kChunk - 1) / kChunk;
     std::vector<double> sq(chunks, 0.0);
     std::vector<std::size_t> n(chunks, 0);
-    if (tree.size() == 0) return std::pair{0.0, std::size_t{0}};
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
       for (std::size_t i = c * kChunk; i < std::min(q.size(), (c + 1) * kChunk); ++i) {
         float d2 = 0.0f;
