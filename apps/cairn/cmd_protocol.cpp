@@ -76,6 +76,11 @@ double median(std::vector<double> v) {
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+/// {"median", "max"} of a sample (0 for both when it is empty).
+nlohmann::json median_max(const std::vector<double>& v) {
+  return {{"median", median(v)}, {"max", v.empty() ? 0.0 : *std::max_element(v.begin(), v.end())}};
+}
+
 void draw_acceptance(const std::filesystem::path& file, const std::vector<RefinedCandidate>& candidates,
                      const RegistrationAcceptanceConfig& acc) {
   Image img(kPlotSize, kPlotSize, {255, 255, 255});
@@ -242,18 +247,13 @@ int run_protocol(const ProtocolArgs& a) {
         {"success_rate", n ? double(ok) / double(n) : 0.0},
         {"accepted", accepted},
         {"false_positives", wrong},
-        {"rotation_error_deg", {{"median", median(rot)}, {"max", rot.empty() ? 0.0 : *std::max_element(rot.begin(), rot.end())}}},
-        {"translation_error_m",
-         {{"median", median(trans)}, {"max", trans.empty() ? 0.0 : *std::max_element(trans.begin(), trans.end())}}},
-        {"rotation_error_vs_map_deg",
-         {{"median", median(rot_map)}, {"max", rot_map.empty() ? 0.0 : *std::max_element(rot_map.begin(), rot_map.end())}}},
-        {"translation_error_vs_map_m",
-         {{"median", median(trans_map)},
-          {"max", trans_map.empty() ? 0.0 : *std::max_element(trans_map.begin(), trans_map.end())}}},
+        {"rotation_error_deg", median_max(rot)},
+        {"translation_error_m", median_max(trans)},
+        {"rotation_error_vs_map_deg", median_max(rot_map)},
+        {"translation_error_vs_map_m", median_max(trans_map)},
         {"registration_ms_median", median(ms)},
         {"reoptimize_ms_median", median(reopt_ms)},
-        {"map_offset_m",
-         {{"median", median(offsets)}, {"max", offsets.empty() ? 0.0 : *std::max_element(offsets.begin(), offsets.end())}}}};
+        {"map_offset_m", median_max(offsets)}};
   };
   nlohmann::json trial_json = nlohmann::json::array();
   for (const Trial& t : trials) {
