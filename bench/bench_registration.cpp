@@ -11,7 +11,9 @@
 //
 // - BM_Cairn_RegisterGlobal: register_global(source, target, {}, {}) with its own stage timings
 //   (segmentation_source includes the source voxel grid and the levelling).
-// - BM_Pcl_Pipeline: cairn's segmentations are shared (from one register_global run outside the
+// - BM_Cairn_PaperSteps: the same with registration.centroid_hypotheses = false, i.e. only the
+//   paper's steps, which the PCL pipeline runs too (candidates from consistency groups only).
+// - BM_Pcl_Pipeline (the paper's Sec. 4.4 pipeline written with PCL): cairn's segmentations are shared (from one register_global run outside the
 //   timed region; PCL segmentation numbers: bench_segmentation). On the object-segment points of
 //   the voxelised source and of the target:
 //     keypoints   pcl::ISSKeypoint3D (cairn's IssConfig: 6 / 4 cm, gamma 0.975, 5 neighbours, 2 threads)
@@ -20,11 +22,14 @@
 //     descriptors pcl::SHOTEstimationOMP (r = 0.1, 2 threads)
 //     matching    pcl::KdTreeFLANN<pcl::SHOT352> over the target descriptors, nearest neighbour of
 //                 each source descriptor, kept when the squared distance < 0.25 (cairn's MatchConfig)
-//     grouping    pcl::GeometricConsistencyGrouping (consensus 0.1, threshold 3); best cluster =
-//                 most correspondences
-//     icp         pcl::IterativeClosestPoint on all object-segment points from the best cluster's
-//                 transform, two passes as cairn (correspondence distance 0.4, then 0.15; 40
-//                 iterations each)
+//     grouping    pcl::GeometricConsistencyGrouping (consensus 0.1, threshold 3); the b = 30
+//                 groups with the most correspondences (cairn's GroupingConfig::max_candidates)
+//     verification cairn::match_centroids (PCL has no such step): most centroid inliers within
+//                 d_match = 1 m wins, ties to the smaller largest distance; at least 3 (cairn's
+//                 min_matched_segments) or no result
+//     icp         pcl::IterativeClosestPoint on the matched segments' points from the
+//                 best-verified group's transform, two passes as cairn (correspondence distance
+//                 0.4, then 0.15; 40 iterations each)
 //   Success: the final transform within 2° and 10 cm of the truth (no acceptance test of its own).
 // - BM_Open3d_FpfhRansac (when Open3D is found): on the same object-segment points: voxel grid
 //   0.05 per segment, normals (r = 0.1, max 30 nn, oriented as above), FPFH (r = 0.25, max 100 nn),
@@ -35,8 +40,9 @@
 // 2° / 10 cm of the truth), rotation_deg, translation_m, points (source + target object points; for
 // cairn the input clouds). Diagnostics: cairn's accepted_from_centroids (1: the accepted alignment
 // came from the centroid-pair hypotheses, not from a consistency group), PCL's
-// clusters_near_truth (groups within 10° / 1 m of the truth) and icp_from_truth_ms (the same ICP
-// started at the truth; not part of ms_total).
+// clusters_near_truth (groups within 10° / 1 m of the truth), clusters_near_truth_in_b (those among
+// the b verified) and icp_from_truth_ms (the same ICP started at the truth, on the segments matched
+// there; not part of ms_total).
 // Scripts: scripts/bench_registration.sh prints the comparison table.
 #include <benchmark/benchmark.h>
 #include <pcl/console/print.h>
@@ -68,6 +74,8 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <numeric>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -202,12 +210,12 @@ struct StageClock {
 
 // --- cairn -----------------------------------------------------------------------------------------
 
-void BM_Cairn_RegisterGlobal(benchmark::State& state) {
+void run_cairn(benchmark::State& state, const GlobalRegistrationConfig& cfg) {
   const Fixture& f = fixture();
   StageClock clock;
   GlobalRegistrationResult r;
   for (auto _ : state) {
-    r = register_global(f.source, f.target, {}, {});
+    r = register_global(f.source, f.target, {}, cfg);
     for (const auto& [stage, ms] : r.timings.stages) clock.add(stage, ms);
     ++clock.iterations;
   }
@@ -221,6 +229,15 @@ void BM_Cairn_RegisterGlobal(benchmark::State& state) {
   state.counters["candidates"] = double(r.candidates);
   for (const CandidateReport& c : r.reports)  // where the accepted alignment came from
     if (c.accepted) state.counters["accepted_from_centroids"] = c.origin == "centroids" ? 1.0 : 0.0;
+}
+
+void BM_Cairn_RegisterGlobal(benchmark::State& state) { run_cairn(state, {}); }
+
+/// The paper's steps only, as the PCL pipeline runs them: no centroid-pair hypotheses.
+void BM_Cairn_PaperSteps(benchmark::State& state) {
+  GlobalRegistrationConfig cfg;
+  cfg.centroid_hypotheses = false;
+  run_cairn(state, cfg);
 }
 
 /// The n points of `cloud` nearest (in x, y) to the world point `centre`: a smaller site around
@@ -328,6 +345,16 @@ pcl::CorrespondencesPtr pcl_match(const Descriptors::Ptr& source, const Descript
   return out;
 }
 
+/// The points of the segments matched by `m` (its source side or target side).
+CloudXYZ::Ptr matched_points(const Objects& o, const CentroidMatch& m, bool source_side) {
+  std::vector<char> in(o.centroids.size(), 0);
+  for (const auto& [a, b] : m.pairs) in[std::size_t(source_side ? a : b)] = 1;
+  std::vector<Vec3f> out;
+  for (std::size_t i = 0; i < o.points.size(); ++i)
+    if (in[std::size_t(o.segment_of[i])]) out.push_back(o.points[i]);
+  return to_pcl(out);
+}
+
 template <class T>
 struct PclIcpAccess : T {  // nr_iterations_ is protected; expose it for the counter
   using T::nr_iterations_;
@@ -360,8 +387,9 @@ void BM_Pcl_Pipeline(benchmark::State& state) {
   StageClock clock;
   Eigen::Matrix4f T = Eigen::Matrix4f::Identity();
   bool found = false;
-  std::size_t keypoints = 0, correspondences = 0, best_votes = 0;
-  int icp_iterations = 0;
+  std::size_t keypoints = 0, correspondences = 0, best_votes = 0, clusters = 0;
+  int icp_iterations = 0, matched_segments = 0;
+  std::vector<std::size_t> top_b;  // the b most-voted groups (indices into transforms)
   std::vector<Eigen::Matrix4f, Eigen::aligned_allocator<Eigen::Matrix4f>> transforms;
   // GeometricConsistencyGrouping's RANSAC refit prints an error for every cluster it cannot refit.
   const pcl::console::VERBOSITY_LEVEL verbosity = pcl::console::getVerbosityLevel();
@@ -387,43 +415,82 @@ void BM_Pcl_Pipeline(benchmark::State& state) {
     transforms.clear();
     std::vector<pcl::Correspondences> grouped;
     gc.recognize(transforms, grouped);
-    std::size_t best = 0;
-    for (std::size_t k = 1; k < grouped.size(); ++k)
-      if (grouped[k].size() > grouped[best].size()) best = k;
+    // The b most-voted groups (stable: PCL's order among equal votes), each verified by the
+    // segment centroids; most inliers wins, ties to the smaller largest distance (Sec. 4.4).
+    std::vector<std::size_t>& order = top_b;
+    order.resize(grouped.size());
+    std::iota(order.begin(), order.end(), std::size_t(0));
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return grouped[a].size() > grouped[b].size(); });
+    order.resize(std::min(order.size(), std::size_t(gcfg.grouping.max_candidates)));
     clock.add("grouping", sw.lap_ms());
-    found = !transforms.empty();
-    T = found ? pcl_icp(src, tgt, transforms[best], icp_iterations) : Eigen::Matrix4f::Identity();
+    std::optional<std::size_t> best;
+    CentroidMatch best_match;
+    for (std::size_t k : order) {
+      Eigen::Isometry3d Tk;
+      Tk.matrix() = transforms[k].cast<double>();
+      const CentroidMatch m =
+          match_centroids(f.source_objects.centroids, f.target_objects.centroids, Tk, gcfg.d_match);
+      if (!best || m.inliers > best_match.inliers ||
+          (m.inliers == best_match.inliers && m.max_distance < best_match.max_distance)) {
+        best = k;
+        best_match = m;
+      }
+    }
+    found = best && best_match.inliers >= gcfg.acceptance.min_matched_segments;
+    clock.add("verification", sw.lap_ms());
+    if (found) {  // ICP on the matched segments only
+      T = pcl_icp(matched_points(f.source_objects, best_match, true), matched_points(f.target_objects, best_match, false),
+                  transforms[*best], icp_iterations);
+      matched_segments = best_match.inliers;
+    } else {
+      T = Eigen::Matrix4f::Identity();
+    }
     clock.add("icp", sw.lap_ms());
     ++clock.iterations;
     keypoints = kp_s->size() + kp_t->size();
     correspondences = corrs->size();
-    best_votes = found ? grouped[best].size() : 0;
+    best_votes = found ? grouped[*best].size() : 0;
+    clusters = grouped.size();
   }
   pcl::console::setVerbosityLevel(verbosity);
   clock.report(state, {});
   // Diagnostic (untimed): clusters whose transform is near the truth (within 10 deg / 1 m), i.e.
   // whether the right alignment was among the candidates the most-voted rule chose from.
-  std::size_t near_truth = 0;
-  for (const Eigen::Matrix4f& Tc : transforms) {
+  // Also how many of them were among the b verified, and the best centroid inliers they got.
+  std::size_t near_truth = 0, near_truth_in_b = 0;
+  int near_truth_inliers = 0;
+  for (std::size_t k = 0; k < transforms.size(); ++k) {
     Eigen::Isometry3d Tl;
-    Tl.matrix() = Tc.cast<double>();
+    Tl.matrix() = transforms[k].cast<double>();
     Tl.linear() = Eigen::Quaterniond(Tl.linear()).normalized().toRotationMatrix();
     const RegistrationError ec =
         registration_error(Similarity::from_isometry(local_to_world(Tl, f)), f.truth, f.site_centre);
-    if (ec.rotation_deg < 10.0 && ec.translation_m < 1.0) ++near_truth;
+    if (ec.rotation_deg >= 10.0 || ec.translation_m >= 1.0) continue;
+    ++near_truth;
+    if (std::find(top_b.begin(), top_b.end(), k) == top_b.end()) continue;
+    ++near_truth_in_b;
+    near_truth_inliers = std::max(
+        near_truth_inliers,
+        match_centroids(f.source_objects.centroids, f.target_objects.centroids, Tl, gcfg.d_match).inliers);
   }
   state.counters["clusters_near_truth"] = double(near_truth);
-  // Diagnostic (untimed in ms_total): the same ICP from the true transform, i.e. its cost when it
-  // starts in the right basin (from a wrong cluster it runs to the iteration cap).
+  state.counters["clusters_near_truth_in_b"] = double(near_truth_in_b);
+  state.counters["near_truth_centroid_inliers"] = double(near_truth_inliers);
+  // Diagnostic (untimed in ms_total): the same ICP from the true transform on the segments matched
+  // there, i.e. its cost when it starts in the right basin.
   {
     Eigen::Isometry3d T_true = Eigen::Isometry3d::Identity();
     T_true.linear() = f.truth.rotation;
     T_true.translation() = f.truth.translation;
     const Eigen::Isometry3d T_true_local = Eigen::Translation3d(-f.target_objects.origin) * T_true *
                                            Eigen::Translation3d(f.source_objects.origin);
+    const CentroidMatch m =
+        match_centroids(f.source_objects.centroids, f.target_objects.centroids, T_true_local, gcfg.d_match);
+    const CloudXYZ::Ptr ms = matched_points(f.source_objects, m, true), mt = matched_points(f.target_objects, m, false);
     int it = 0;
     Stopwatch sw;
-    (void)pcl_icp(src, tgt, T_true_local.matrix().cast<float>(), it);
+    (void)pcl_icp(ms, mt, T_true_local.matrix().cast<float>(), it);
     state.counters["icp_from_truth_ms"] = sw.lap_ms();
     state.counters["icp_from_truth_iterations"] = it;
   }
@@ -437,7 +504,8 @@ void BM_Pcl_Pipeline(benchmark::State& state) {
   state.counters["points"] = double(src->size() + tgt->size());
   state.counters["keypoints"] = double(keypoints);
   state.counters["correspondences"] = double(correspondences);
-  state.counters["clusters"] = double(transforms.size());
+  state.counters["clusters"] = double(clusters);
+  state.counters["matched_segments"] = double(matched_segments);
   state.counters["best_cluster"] = double(best_votes);
 }
 
@@ -549,6 +617,7 @@ void BM_Open3d_FpfhRansac(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_Cairn_RegisterGlobal)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+BENCHMARK(BM_Cairn_PaperSteps)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
 BENCHMARK(BM_Pcl_Pipeline)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
 #ifdef CAIRN_BENCH_OPEN3D
 BENCHMARK(BM_Open3d_FpfhRansac)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);

@@ -4,6 +4,7 @@
 // simulator's T_map_drone.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -214,6 +215,29 @@ TEST(GlobalRegistration, LevellingTurnsTheGroundOntoTheMapsGround) {
     std::printf("[levelling] rotation %d: ground normal error %.2f deg\n", k, err);
     EXPECT_LT(err, 1.5) << "rotation " << k;  // was 3° off (or 180°) with the plain RANSAC plane
   }
+}
+
+// The paper's steps alone (no centroid-pair hypotheses: candidates only from the consistency
+// groups of ISS + SHOT matches) register the same site, from a consistency group.
+TEST(GlobalRegistration, PaperStepsAloneRegisterFromAConsistencyGroup) {
+  const Fixture& f = fixture();
+  const ScaleRecoveryResult s = recover_scale(f.sfm_model, f.vins);
+  const Similarity truth = f.T_map_sfm * s.T_metric_sfm.inverse();
+  PointCloud source = f.drone_sfm;
+  transform_cloud(source, s.T_metric_sfm);
+  GlobalRegistrationConfig cfg;
+  cfg.centroid_hypotheses = false;
+  const GlobalRegistrationResult r = register_global(source, f.map, {}, cfg);
+  ASSERT_TRUE(r.success) << describe(r);
+  EXPECT_EQ(r.centroid_candidates, 0u);
+  const auto accepted = std::find_if(r.reports.begin(), r.reports.end(), [](const CandidateReport& c) { return c.accepted; });
+  ASSERT_NE(accepted, r.reports.end());
+  EXPECT_EQ(accepted->origin, "descriptors");
+  const RegistrationError e = errors(r.T_target_source, truth, kSiteCentre);
+  EXPECT_LT(e.rotation_deg, kMaxRotationErrorDeg);
+  EXPECT_LT(e.translation_m, kMaxTranslationError);
+  std::printf("[registration, paper steps] %.3f deg, %.1f mm; accepted a group of %zu votes (%zu groups); %.0f ms\n",
+              e.rotation_deg, 1000 * e.translation_m, accepted->votes, r.candidates, r.timings.total());
 }
 
 // The whole chain on more sites (seed 1 above): each seed is its own simulated exp1 layout (stones, terrain,

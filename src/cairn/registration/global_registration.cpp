@@ -77,42 +77,11 @@ void describe(SegmentSet& s, const GlobalRegistrationConfig& cfg, Timings& t, co
   t.add("descriptors_" + which, sw.lap_ms());
 }
 
-struct Verification {
-  int inliers = 0;
-  double max_distance = 0.0;
-  std::vector<std::pair<std::int32_t, std::int32_t>> pairs;  // (source index, target index)
-};
+using Verification = CentroidMatch;
 
-/// Source centroids moved by T, each matched one-to-one (closest pairs first) to a target
-/// centroid within d_match.
 Verification verify_centroids(const SegmentSet& src, const SegmentSet& tgt, const Eigen::Isometry3d& T,
                               double d_match) {
-  struct Pair {
-    double d;
-    std::int32_t s, t;
-  };
-  std::vector<Pair> pairs;
-  for (std::size_t i = 0; i < src.centroids.size(); ++i) {
-    const Vec3d p = T * src.centroids[i].cast<double>();
-    for (std::size_t j = 0; j < tgt.centroids.size(); ++j) {
-      const double d = (p - tgt.centroids[j].cast<double>()).norm();
-      if (d < d_match) pairs.push_back({d, std::int32_t(i), std::int32_t(j)});
-    }
-  }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
-    return a.d != b.d ? a.d < b.d : (a.s != b.s ? a.s < b.s : a.t < b.t);
-  });
-  std::vector<char> used_s(src.centroids.size(), 0), used_t(tgt.centroids.size(), 0);
-  Verification v;
-  for (const Pair& p : pairs) {
-    if (used_s[std::size_t(p.s)] || used_t[std::size_t(p.t)]) continue;
-    used_s[std::size_t(p.s)] = used_t[std::size_t(p.t)] = 1;
-    v.pairs.emplace_back(p.s, p.t);
-    v.max_distance = std::max(v.max_distance, p.d);
-  }
-  v.inliers = int(v.pairs.size());
-  std::sort(v.pairs.begin(), v.pairs.end());
-  return v;
+  return match_centroids(src.centroids, tgt.centroids, T, d_match);
 }
 
 struct Overlap {
@@ -369,6 +338,37 @@ GlobalRegistrationResult register_whole(const PointCloud& source, const PointClo
 }
 
 }  // namespace
+
+CentroidMatch match_centroids(std::span<const Vec3f> source_centroids, std::span<const Vec3f> target_centroids,
+                              const Eigen::Isometry3d& T, double d_match) {
+  struct Pair {
+    double d;
+    std::int32_t s, t;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < source_centroids.size(); ++i) {
+    const Vec3d p = T * source_centroids[i].cast<double>();
+    for (std::size_t j = 0; j < target_centroids.size(); ++j) {
+      const double d = (p - target_centroids[j].cast<double>()).norm();
+      if (d < d_match) pairs.push_back({d, std::int32_t(i), std::int32_t(j)});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+    return a.d != b.d ? a.d < b.d : (a.s != b.s ? a.s < b.s : a.t < b.t);
+  });
+  std::vector<char> used_s(source_centroids.size(), 0), used_t(target_centroids.size(), 0);
+  CentroidMatch v;
+  for (const Pair& p : pairs) {
+    if (used_s[std::size_t(p.s)] || used_t[std::size_t(p.t)]) continue;
+    used_s[std::size_t(p.s)] = used_t[std::size_t(p.t)] = 1;
+    v.pairs.emplace_back(p.s, p.t);
+    v.max_distance = std::max(v.max_distance, p.d);
+  }
+  v.inliers = int(v.pairs.size());
+  std::sort(v.pairs.begin(), v.pairs.end());
+  return v;
+}
+
 
 void GlobalRegistrationConfig::validate() const {
   if (!(source_voxel.res_voxel > 0.0)) throw ConfigError("registration.source_voxel.res_voxel must be positive");

@@ -26,6 +26,7 @@
 //   points, and at least `min_matched_segments` segments matched (docs/registration.md shows the
 //   distributions for right and wrong candidates).
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "cairn/core/log.hpp"
@@ -225,6 +226,18 @@ struct GlobalRegistrationResult {
 [[nodiscard]] GlobalRegistrationResult register_global(const PointCloud& source, const PointCloud& target,
                                                        const SegmentationConfig& segmentation,
                                                        const GlobalRegistrationConfig& config);
+
+/// Centroid verification (Sec. 4.4): the source centroids moved by T, each matched one-to-one
+/// (closest pairs first) to a target centroid within d_match. A candidate with more `inliers`
+/// wins; ties go to the smaller `max_distance`. `pairs` are (source index, target index), sorted.
+struct CentroidMatch {
+  int inliers = 0;
+  double max_distance = 0.0;  // [m]
+  std::vector<std::pair<std::int32_t, std::int32_t>> pairs;
+};
+[[nodiscard]] CentroidMatch match_centroids(std::span<const Vec3f> source_centroids,
+                                            std::span<const Vec3f> target_centroids, const Eigen::Isometry3d& T,
+                                            double d_match);
 
 /// Error of an estimated source-to-target similarity against the truth, where it matters: the
 /// rotation angle of E = estimate · truth⁻¹ (≈ identity on the target) and the displacement E
