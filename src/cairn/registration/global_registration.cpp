@@ -369,7 +369,6 @@ CentroidMatch match_centroids(std::span<const Vec3f> source_centroids, std::span
   return v;
 }
 
-
 void GlobalRegistrationConfig::validate() const {
   if (!(source_voxel.res_voxel > 0.0)) throw ConfigError("registration.source_voxel.res_voxel must be positive");
   if (!(d_match > 0.0)) throw ConfigError("registration.d_match must be a positive number of metres");
