@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 
 #include "cairn/core/error.hpp"
@@ -159,6 +160,56 @@ TEST(GlobalRegistration, GravityAlignedModeEstimatesYawAndTranslation) {
   const RegistrationError e = errors(r.T_target_source, T_source_map.inverse(), kSiteCentre);
   EXPECT_LT(e.rotation_deg, kMaxRotationErrorDeg);
   EXPECT_LT(e.translation_m, kMaxTranslationError);
+}
+
+// Partial overlap: the drone surveyed only part of the site, or the LiDAR has mapped only part
+// of it. The site is cut between two stones (true centroids sorted along x) so that each side
+// keeps four of the seven (the 8 s map holds six of them); each cut cloud registers against the
+// other, whole one.
+TEST(GlobalRegistration, PartialOverlapEitherWayRegisters) {
+  const Fixture& f = fixture();
+  const PointCloud snapshot = io::load_cloud(f.run_dir / "truth" / "map_snapshot.ply");
+  const std::vector<std::int32_t> stone_of = transfer_labels(snapshot, snapshot, 0.06);  // its own labels
+  std::vector<Vec3d> sum(7, Vec3d::Zero());
+  std::vector<int> count(7, 0);
+  for (std::size_t i = 0; i < snapshot.size(); ++i)
+    if (stone_of[i] >= 0 && stone_of[i] < 7) {
+      sum[std::size_t(stone_of[i])] += snapshot.world(i);
+      ++count[std::size_t(stone_of[i])];
+    }
+  std::vector<double> xs;
+  for (std::size_t k = 0; k < 7; ++k)
+    if (count[k] > 0) xs.push_back(sum[k].x() / count[k]);
+  ASSERT_EQ(xs.size(), 7u);
+  std::sort(xs.begin(), xs.end());
+  const auto keep_x = [](const PointCloud& c, double lo, double hi) {
+    PointCloud out;
+    out.origin = c.origin;
+    for (std::size_t i = 0; i < c.size(); ++i)
+      if (c.world(i).x() >= lo && c.world(i).x() < hi) out.points.push_back(c.points[i]);
+    return out;
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  const PointCloud drone = metric_drone(f, {});  // in the map frame: the truth is the identity
+  struct Case {
+    const char* what;
+    PointCloud source, target;
+  };
+  const Case cases[] = {
+      {"drone cloud of the four stones with the smallest x", keep_x(drone, -inf, 0.5 * (xs[3] + xs[4])), f.map},
+      {"map of the four stones with the largest x", drone, keep_x(f.map, 0.5 * (xs[2] + xs[3]), inf)},
+  };
+  for (const Case& c : cases) {
+    const GlobalRegistrationResult r = register_global(c.source, c.target, {}, {});
+    ASSERT_TRUE(r.success) << c.what << ": " << describe(r);
+    const RegistrationError e = errors(r.T_target_source, Similarity{}, kSiteCentre);
+    EXPECT_LT(e.rotation_deg, kMaxRotationErrorDeg) << c.what;
+    EXPECT_LT(e.translation_m, kMaxTranslationError) << c.what;
+    EXPECT_GE(r.matched_segments.size(), 3u) << c.what;
+    EXPECT_LE(r.matched_segments.size(), 5u) << c.what;  // four stones (a fifth may be a cut piece)
+    std::printf("[registration, partial] %s: %zu matched, %.3f deg, %.1f mm\n", c.what, r.matched_segments.size(),
+                e.rotation_deg, 1000 * e.translation_m);
+  }
 }
 
 TEST(GlobalRegistration, WrongScaleWrongSiteAndNoOverlapFailCleanly) {
