@@ -43,8 +43,9 @@
 // came from the centroid-pair hypotheses, not from a consistency group), PCL's
 // clusters_near_truth (groups within 10° / 1 m of the truth), clusters_near_truth_in_b (those among
 // the b verified), near_truth_centroid_inliers (the most centroid inliers one of those got),
-// failed_refits (clusters whose RANSAC refit failed: identity transform, left out) and icp_from_truth_ms (the same ICP started at the truth, on the segments matched
-// there; not part of ms_total).
+// failed_refits (clusters whose RANSAC refit failed: identity transform, left out) and
+// icp_from_truth_ms (the same ICP started at the truth, on the segments matched there; not part
+// of ms_total).
 // Scripts: scripts/bench_registration.sh prints the comparison table.
 #include <benchmark/benchmark.h>
 #include <pcl/console/print.h>
@@ -77,7 +78,6 @@
 #include <limits>
 #include <map>
 #include <numeric>
-#include <optional>
 #include <string>
 #include <vector>
 

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs the global-registration benchmark (cairn::register_global, also with candidates from the
-# consistency groups only (no centroid-pair hypotheses), vs the paper's pipeline in PCL, and Open3D FPFH + RANSAC when
-# built with it; same input, same run) and prints a table: ms per stage, totals, the speed-up of
-# cairn over PCL, success and errors against the truth.
+# consistency groups only (no centroid-pair hypotheses), vs the paper's pipeline in PCL, and
+# Open3D FPFH + RANSAC when built with it; same input, same run) and prints a table: ms per
+# stage, totals, the speed-up of cairn over PCL, success and errors against the truth.
 #   scripts/bench_registration.sh [build-dir] [results.json]
 #     build-dir     default: build (a Release build with PCL found)
 #     results.json  print the table of an earlier run (--benchmark_format=json output) instead
