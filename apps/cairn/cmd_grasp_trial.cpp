@@ -58,25 +58,30 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   if (!a.config_file.empty()) config::load_yaml_file(cfg, a.config_file);
   for (const auto& o : a.overrides) config::apply_override(cfg, o);
   // "default": the procedural site of SiteConfig{}; otherwise the site of a simulator scenario
-  // (the same stones `cairn simulate --scenario NAME --seed N` writes).
-  sim::Site site = a.scenario == "default"
-                       ? sim::generate_site(sim::SiteConfig{}, a.seed)
-                       : sim::generate_site(sim::scenario_config(a.scenario, sim::default_real_mesh_dir()).site, a.seed);
+  // (the same stones `cairn simulate --scenario NAME --seed N` writes). Either way settled in the
+  // physics first (the world at rest the sensors see), unless --no-settle.
+  sim::SimulationConfig sim_cfg;
+  if (a.scenario != "default") {
+    sim_cfg = sim::scenario_config(a.scenario, sim::default_real_mesh_dir());
+  } else {
+    sim_cfg.site = sim::SiteConfig{};
+    sim_cfg.site.stones.embed_depth = 0.0;
+    sim_cfg.site.stones.settle = true;
+  }
+  sim_cfg.physics = cfg.physics;
+  sim_cfg.settle_in_physics = !a.no_settle;
+  sim::SiteSettleResult settled;
+  if (!a.no_settle) spdlog::info("grasp-trial: settling the site of seed {} in the physics", a.seed);
+  sim::Site site = sim::make_site(sim_cfg, a.seed, &settled);
   const int n = static_cast<int>(site.stones.size());
   if (a.stone < 0 || a.stone >= n) {
     throw InputError("--stone: " + std::to_string(a.stone) + " is not a stone of this site (0.." + std::to_string(n - 1) + ")");
   }
-  // The procedural placement is not a static equilibrium: let the stones settle first, so the
-  // grasp is planned on (and the trial starts from) stones at rest.
-  std::vector<Eigen::Isometry3d> settle(site.stones.size(), Eigen::Isometry3d::Identity());
   nlohmann::json settle_json = nullptr;
   if (!a.no_settle) {
-    spdlog::info("grasp-trial: settling the {} stones of seed {}", n, a.seed);
-    const sim::SettleResult s = sim::settle_stones(site, cfg.physics);
-    settle = s.stone_poses;
-    sim::apply_stone_poses(site, settle);
-    settle_json = sim::to_json(s);
-    spdlog::info("grasp-trial: settled={} in {:.1f} s simulated, {:.1f} s wall", s.settled, s.sim_time, s.wall_time);
+    settle_json = sim::to_json(settled);
+    spdlog::info("grasp-trial: site at rest={} ({} islands, {:.1f} s simulated, {:.2f} s wall)", settled.settled,
+                 settled.islands, settled.sim_time, settled.wall_time);
   }
   sim::GraspPlan plan;
   if (a.grasp_file.empty()) {
@@ -94,16 +99,13 @@ int run_grasp_trial(const GraspTrialArgs& a) {
                plan.approach_distance, plan.lift_height);
   sim::GraspTrialResult r = sim::run_grasp_trial(site, plan, cfg.gripper, cfg.physics);
   nlohmann::json j = sim::to_json(r);
-  // Poses relative to the generated site (settling composed in), so applying them to
-  // generate_site(seed) gives the world after the trial.
-  nlohmann::json poses = nlohmann::json::array();
-  for (std::size_t k = 0; k < r.stone_poses.size(); ++k) poses.push_back(sim::pose_to_json(r.stone_poses[k] * settle[k]));
-  j["stone_poses_from_generated"] = poses;
+  // The trial's stone poses are relative to the site as generated (settled in the physics): the
+  // world after the trial is make_site(seed) with these applied.
   j["scenario"] = a.scenario;
   j["seed"] = a.seed;
   j["stone"] = a.stone;
   j["plan"] = sim::to_json(plan);
-  j["initial_settle"] = settle_json;
+  j["site_settle"] = settle_json;
   j["config"] = config::to_json(cfg);
   const std::string text = j.dump(2);
   std::cout << text << std::endl;
@@ -134,7 +136,7 @@ void add_grasp_trial_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--out", args->out, "also write the JSON result to this file");
   cmd->add_option("--place-offset", args->place_offset, "default grasp: place shift X Y [m]")->expected(2)->capture_default_str();
   cmd->add_option("--place-yaw", args->place_yaw, "default grasp: place rotation about the vertical [rad]")->capture_default_str();
-  cmd->add_flag("--no-settle", args->no_settle, "start from the procedural placement instead of stones at rest");
+  cmd->add_flag("--no-settle", args->no_settle, "start from the procedural placement (not settled in the physics)");
   cmd->add_option("--config", args->config_file, "YAML with physics.* and gripper.* settings");
   cmd->add_option("--set", args->overrides, "override a setting: physics.timestep=0.004 (repeatable)");
   cmd->callback([&run, args] { run = [args] { return run_grasp_trial(*args); }; });

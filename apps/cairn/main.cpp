@@ -22,9 +22,7 @@ int main(int argc, char** argv) {
   app::add_scale_command(app, run);
   app::add_register_command(app, run);
   app::add_protocol_command(app, run);
-#ifdef CAIRN_WITH_PHYSICS
   app::add_grasp_trial_command(app, run);
-#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -330,3 +330,28 @@ TEST(Cli, RegisterIndoorFragmentsWithThePreset) {
   const CmdResult plain = run("register " + d + "/src.xyz " + d + "/ref.xyz");
   EXPECT_EQ(plain.code, 3) << plain.err;
 }
+
+TEST(Cli, GraspTrialOnASettledScenarioSite) {
+  // The contract of `cairn grasp-trial` (issue #15): success, failure_reasons, sim_time,
+  // wall_time and initial_settle.stone_poses (each stone's pose relative to the generated site,
+  // which is settled in the physics: the trial's settle-in moves no stone).
+  const CmdResult r = run("grasp-trial --scenario exp1 --seed 1 --stone 3");
+  ASSERT_TRUE(r.code == 0 || r.code == 3) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"success", "failure_reasons", "sim_time", "wall_time", "trace", "free_stones", "site_settle"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_EQ(j["success"].get<bool>(), r.code == 0);
+  EXPECT_GT(j["sim_time"].get<double>(), 0.0);
+  EXPECT_TRUE(j["site_settle"]["settled"].get<bool>());
+  const auto& poses = j["initial_settle"]["stone_poses"];
+  ASSERT_EQ(poses.size(), 7u);
+  for (const auto& T : poses) {  // about the world origin: 0.1 deg at 5 m is 9 mm
+    for (int row = 0; row < 3; ++row) {
+      EXPECT_NEAR(T[row][3].get<double>(), 0.0, 0.01);
+      EXPECT_NEAR(T[row][row].get<double>(), 1.0, 1e-4);
+    }
+  }
+  EXPECT_EQ(j["trace"]["time"].size(), j["trace"]["opening"].size());
+  EXPECT_EQ(run("grasp-trial --scenario exp1 --seed 1 --stone 7").code, 2);  // no such stone
+}

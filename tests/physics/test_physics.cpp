@@ -89,6 +89,100 @@ TEST(GraspTrial, CentredAntipodalGraspOnBoxSucceedsAndPlaces) {
   EXPECT_LT(r.place_error, 0.1);
 }
 
+/// Samples of the trace within a phase of the trial.
+std::vector<TraceSample> trace_in(const GraspTrialResult& r, const std::string& phase) {
+  std::vector<TraceSample> out;
+  for (const PhaseTiming& p : r.phases) {
+    if (p.name != phase) continue;
+    for (const TraceSample& t : r.trace) {
+      if (t.time >= p.start && t.time <= p.end) out.push_back(t);
+    }
+  }
+  return out;
+}
+
+TEST(GraspTrial, TraceCarriesTheStoneWeightAndASteadyJaw) {
+  // What the machine measures (Sec. 6.3): while the stone hangs in the grip the arm carries its
+  // weight (520 kg), and the jaw opening stays at the stone's width.
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
+  plan.target_stone = 0;
+  const PhysicsConfig c = fast_config();
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
+  ASSERT_TRUE(r.success) << r.message;
+  ASSERT_GT(r.trace.size(), 100u);
+  for (std::size_t i = 1; i < r.trace.size(); ++i) EXPECT_GT(r.trace[i].time, r.trace[i - 1].time);
+  const double weight = c.rock_density * site.stones[0].volume * 9.81;
+  const std::vector<TraceSample> hold = trace_in(r, "hold");
+  ASSERT_FALSE(hold.empty());
+  for (const TraceSample& t : hold) {
+    EXPECT_NEAR(t.arm_load, weight, 0.1 * weight) << "t = " << t.time;
+    EXPECT_NEAR(t.opening, 0.5, 0.03) << "t = " << t.time;
+  }
+  // Before the grasp, held still, the arm carries nothing but the gripper (while it moves, the
+  // trace also holds the gripper's own inertia: ~1.7 t at the min-jerk accelerations).
+  for (const TraceSample& t : trace_in(r, "settle_in")) EXPECT_NEAR(t.arm_load, 0.0, 0.02 * weight);
+}
+
+TEST(GraspTrial, LowFrictionSlipShowsInTheJawTrace) {
+  // A wedge-shaped stone (0.8 m long, 0.7 m wide at the bottom, 0.6 m at the top, 0.6 m high):
+  // at friction 0.1 it slides down out of the jaws while lifting, and because it narrows upwards
+  // the wire encoder's trace shows the jaws closing further; the result says "slipped". (Between
+  // parallel jaws a box or a ball slides out without the jaws moving: that is a "dropped".)
+  Site site = flat_box_site();
+  Stone wedge;
+  for (int i = 0; i < 8; ++i) {
+    const float half_width = (i & 4) ? 0.3f : 0.35f;
+    wedge.mesh.vertices.points.emplace_back((i & 1) ? 0.4f : -0.4f, (i & 2) ? half_width : -half_width,
+                                            (i & 4) ? 0.6f : 0.0f);
+  }
+  wedge.mesh.triangles = box_mesh(Vector3d::Zero(), Vector3d::Ones()).triangles;
+  wedge.volume = mesh_volume(wedge.mesh);
+  wedge.centroid = mesh_centroid(wedge.mesh);
+  for (std::size_t i = 0; i < wedge.mesh.vertices.size(); ++i) wedge.bounds.extend(wedge.mesh.vertices.world(i));
+  site.stones[0] = wedge;
+  const GripperConfig gripper;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
+  plan.target_stone = 0;
+  PhysicsConfig c = fast_config();
+  c.friction = 0.1;
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
+  EXPECT_FALSE(r.success);
+  EXPECT_TRUE(has_reason(r, reason::kSlipped)) << r.message;
+  const std::vector<TraceSample> lift = trace_in(r, "lift");
+  ASSERT_GE(lift.size(), 2u);
+  EXPECT_GT(r.jaw_travel, c.jaw_slip_threshold);
+  // The trace (every 20 ms) shows it up to its last sample before the detector fired.
+  EXPECT_GT(lift.front().opening - lift.back().opening, 0.75 * c.jaw_slip_threshold);
+  // At the default friction the jaws hold it while lifting: the trace stays flat.
+  const GraspTrialResult held = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_LT(held.jaw_travel, c.jaw_slip_threshold) << held.message;
+  const std::vector<TraceSample> steady = trace_in(held, "lift");
+  ASSERT_GE(steady.size(), 2u);
+  EXPECT_LT(steady.front().opening - steady.back().opening, c.jaw_slip_threshold);
+}
+
+TEST(GraspTrial, StonesFarFromThePathAreStatic) {
+  // Two boxes 5 m apart: grasping one leaves the other static (not simulated, not moved).
+  Site site = flat_box_site();
+  site.stones.push_back(box_stone({4.6, -0.25, 0.0}, {5.4, 0.25, 0.5}));
+  const GripperConfig gripper;
+  CentredGraspOptions o;
+  o.place_offset = {0.0, 1.5};
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.target_stone = 0;
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
+  EXPECT_TRUE(r.success) << r.message;
+  EXPECT_EQ(r.free_stones, 1);
+  EXPECT_TRUE(r.stone_poses[1].isApprox(Isometry3d::Identity(), 1e-12));
+  // Placed next to it instead, the second box is free (it could be bumped).
+  o.place_offset = {4.3, 0.0};  // the carried box reaches into the second one
+  plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.target_stone = 0;
+  EXPECT_EQ(run_grasp_trial(site, plan, gripper, fast_config()).free_stones, 2);
+}
+
 TEST(GraspTrial, SwingAboutAPivotSucceeds) {
   const Site site = flat_box_site();
   const GripperConfig gripper;

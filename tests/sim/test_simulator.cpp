@@ -336,12 +336,21 @@ TEST(Scenario, Exp1SevenStonesInFrontOfTheMachine) {
     EXPECT_LE(s.centroid.head<2>().norm(), cfg.site.stones.placement_radius + 1e-9);
     real += s.source != "procedural";
   }
-  if (!default_real_mesh_dir().empty()) {
-    EXPECT_EQ(real, 2);
-  }
+  EXPECT_EQ(real, 2);  // the real stones ship with the repository (data/stones)
   EXPECT_GE(cfg.site.terrain.size_x, 20.0);
   EXPECT_GE(cfg.site.terrain.size_y, 20.0);
   EXPECT_THROW((void)scenario_config("nope", {}), ConfigError);
+}
+
+TEST(Scenario, RealStoneMeshesShipWithTheRepository) {
+  // A fresh clone has no ../shared: the scenarios' real stones come from data/stones.
+  const fs::path dir = default_real_mesh_dir();
+  ASSERT_FALSE(dir.empty());
+  EXPECT_EQ(fs::weakly_canonical(dir), fs::weakly_canonical(fs::path(CAIRN_SOURCE_DIR) / "data" / "stones"));
+  EXPECT_TRUE(fs::exists(dir / "SOURCE.md"));  // attribution and licence
+  int meshes = 0;
+  for (const auto& e : fs::directory_iterator(dir)) meshes += e.path().extension() == ".ply";
+  EXPECT_EQ(meshes, 5);
 }
 
 TEST(Scenario, Exp2IsADifferentWiderArrangement) {

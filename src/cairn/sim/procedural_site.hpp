@@ -179,6 +179,10 @@ struct Site {
   StoneConfig stone_config;
   Terrain terrain;
   std::vector<Stone> stones;
+  /// The stones rest on the terrain as the physics holds it (sim::settle_site): physics scenes of
+  /// this site start from these poses as they are, without seats carved under the stones or a
+  /// gentle start, so the world stays where the sensors saw it.
+  bool at_rest = false;
 };
 
 /// A random site. Throws ConfigError on invalid configuration values, or when the stones cannot

@@ -81,10 +81,10 @@ Similarity read_drone_truth(const fs::path& run) {
 std::vector<std::string> scenario_names() { return {"exp1", "exp2", "pile"}; }
 
 fs::path default_real_mesh_dir() {
-  // $CAIRN_SHARED_DIR (the shared/ folder, as the tests honour it) wins over the build-time path.
-  if (const char* shared = std::getenv("CAIRN_SHARED_DIR")) {
-    const fs::path dir = fs::path(shared) / "data" / "real" / "epfl-stone-models";
+  // $CAIRN_STONE_MESH_DIR wins over the meshes shipped in the repository (data/stones).
+  if (const char* dir = std::getenv("CAIRN_STONE_MESH_DIR")) {
     if (fs::is_directory(dir)) return dir;
+    spdlog::warn("CAIRN_STONE_MESH_DIR='{}' is not a directory: using the shipped stone meshes", dir);
   }
   const fs::path dir(CAIRN_DEFAULT_REAL_MESH_DIR);
   return (!dir.empty() && fs::is_directory(dir)) ? dir : fs::path{};
@@ -139,8 +139,22 @@ SimulationConfig scenario_config(const std::string& name, const fs::path& real_m
   return c;
 }
 
+Site make_site(const SimulationConfig& config, std::uint64_t seed, SiteSettleResult* settle) {
+  if (!config.settle_in_physics) return generate_site(config.site, seed);
+  // Settled sites are generated resting on the ground, not sunk into it: a sunk stone needs a
+  // seat carved under it, which every later physics scene would carve again at its new pose,
+  // shifting it by 1-4 cm each time (docs/simulator-physics.md).
+  SiteConfig resting = config.site;
+  resting.stones.embed_depth = 0.0;
+  Site site = generate_site(resting, seed);
+  const SiteSettleResult r = settle_site(site, config.physics);
+  if (!r.settled) spdlog::warn("site seed {}: not every stone came to rest in the physics", seed);
+  if (settle != nullptr) *settle = r;
+  return site;
+}
+
 SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed) {
-  Site site = generate_site(config.site, seed);
+  Site site = make_site(config, seed);
   Excavator excavator(config.excavator, config.gripper, site.terrain);
   RayScene scene = make_world_scene(site, config.terrain_mesh_spacing);
   return SimulatedWorld{std::move(site), std::move(excavator), std::move(scene)};

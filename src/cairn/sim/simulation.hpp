@@ -18,6 +18,7 @@
 #include "cairn/sim/drone.hpp"
 #include "cairn/sim/excavator.hpp"
 #include "cairn/sim/lidar.hpp"
+#include "cairn/sim/physics/physics.hpp"
 #include "cairn/sim/procedural_site.hpp"
 #include "cairn/sim/state_estimation.hpp"
 
@@ -31,6 +32,12 @@ struct SimulationConfig {
   StateEstimationConfig state;
   DroneConfig drone;
   SamplingConfig snapshot;           // the dense ground-truth map snapshot
+  PhysicsConfig physics;             // MuJoCo: the world at rest, grasp trials
+  /// Settle the generated site in the physics before anything is sensed (settle_site, stones
+  /// generated resting on the ground), so the sensors, the truth files and every later physics
+  /// scene start from one world at rest. Off by default until every site comes to rest (issue
+  /// #15: 3 of 20 exp1 sites do not yet; docs/simulator-physics.md); `cairn grasp-trial` settles.
+  bool settle_in_physics = false;
   double terrain_mesh_spacing = 0.05;  // [m] triangulation of the terrain for ray casting
   bool with_drone = true;             // fly the drone survey
   bool with_snapshot = true;          // write truth/map_snapshot.ply
@@ -45,6 +52,8 @@ struct SimulationConfig {
     v("state", state, "state-estimation error model");
     v("drone", drone, "drone photogrammetry survey (Sec. 4.1)");
     v("snapshot", snapshot, "dense labelled ground-truth map snapshot");
+    v("physics", physics, "MuJoCo physics (settling the site, grasp trials)");
+    v("settle_in_physics", settle_in_physics, "settle the generated site in the physics before sensing");
     v("terrain_mesh_spacing", terrain_mesh_spacing, "[m] terrain triangulation for ray casting");
     v("with_drone", with_drone, "fly the drone survey");
     v("with_snapshot", with_snapshot, "write the dense ground-truth map snapshot");
@@ -59,8 +68,8 @@ std::vector<std::string> scenario_names();
 /// scenario's real stones are procedural instead (a warning says so).
 SimulationConfig scenario_config(const std::string& name, const std::filesystem::path& real_mesh_dir);
 
-/// Directory of the real stone meshes: $CAIRN_SHARED_DIR/data/real/epfl-stone-models if set and
-/// present, else the one next to the checkout (compile-time default), if present.
+/// Directory of the real stone meshes: $CAIRN_STONE_MESH_DIR if set and present, else the meshes
+/// shipped in the repository (data/stones, MIT, IBOIS/EPFL: see data/stones/SOURCE.md).
 std::filesystem::path default_real_mesh_dir();
 
 struct SimulationSummary {
@@ -81,6 +90,11 @@ using Progress = std::function<void(const std::string&, std::size_t, std::size_t
 SimulationSummary simulate_run(const std::string& scenario, const SimulationConfig& config, std::uint64_t seed,
                                double duration, const std::filesystem::path& out, bool overwrite = false,
                                const Progress& progress = {});
+
+/// The site of a simulation: generate_site(config.site, seed), or with settle_in_physics the
+/// site generated resting on the ground (embed_depth 0) and settled (settle_site; the result in
+/// `settle` when given). Deterministic for a seed.
+Site make_site(const SimulationConfig& config, std::uint64_t seed, SiteSettleResult* settle = nullptr);
 
 /// Everything the simulator knows at time zero, for tests and other stages (no files).
 struct SimulatedWorld {

@@ -116,7 +116,16 @@ nlohmann::json to_json(const GraspTrialResult& r) {
                      {"rotation", rounded(Eigen::AngleAxisd(T.linear()).angle())}});
   }
   nlohmann::json phases = nlohmann::json::array();
-  for (const PhaseTiming& p : r.phases) phases.push_back({{"name", p.name}, {"start", rounded(p.start)}, {"end", rounded(p.end)}});
+  for (const PhaseTiming& p : r.phases) phases.push_back({{"name", p.name}, {"start", rounded(p.start)}, {"end", rounded(p.end)}, {"wall", p.wall}});
+  nlohmann::json initial = nlohmann::json::array();
+  for (const Isometry3d& T : r.initial_stone_poses) initial.push_back(pose_to_json(T));
+  nlohmann::json trace = {{"time", nlohmann::json::array()}, {"opening", nlohmann::json::array()},
+                          {"arm_load", nlohmann::json::array()}};
+  for (const TraceSample& t : r.trace) {
+    trace["time"].push_back(rounded(t.time));
+    trace["opening"].push_back(rounded(t.opening));
+    trace["arm_load"].push_back(std::round(t.arm_load));
+  }
   return {{"success", r.success},
           {"failure_reasons", r.failure_reasons},
           {"message", r.message},
@@ -129,7 +138,23 @@ nlohmann::json to_json(const GraspTrialResult& r) {
           {"place_error", rounded(r.place_error)},
           {"settled", r.settled},
           {"stone_poses", poses},
+          {"initial_settle", {{"stone_poses", initial}, {"max_speed", rounded(r.initial_max_speed)}}},
+          {"free_stones", r.free_stones},
+          {"trace", trace},
           {"phases", phases},
+          {"sim_time", rounded(r.sim_time)},
+          {"wall_time", r.wall_time}};
+}
+
+nlohmann::json to_json(const SiteSettleResult& r) {
+  nlohmann::json poses = nlohmann::json::array();
+  for (const Isometry3d& T : r.stone_poses) poses.push_back(pose_to_json(T));
+  return {{"settled", r.settled},
+          {"islands", r.islands},
+          {"rounds", r.rounds},
+          {"max_displacement", rounded(r.max_displacement)},
+          {"max_rotation", rounded(r.max_rotation)},
+          {"stone_poses", poses},
           {"sim_time", rounded(r.sim_time)},
           {"wall_time", r.wall_time}};
 }

@@ -25,5 +25,6 @@ GraspPlan grasp_plan_from_json(const nlohmann::json& j, const std::string& sourc
 
 nlohmann::json to_json(const GraspTrialResult& result);
 nlohmann::json to_json(const SettleResult& result);
+nlohmann::json to_json(const SiteSettleResult& result);
 
 }  // namespace cairn::sim

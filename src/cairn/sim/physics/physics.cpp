@@ -7,6 +7,8 @@
 #include <numbers>
 #include <sstream>
 
+#include <tbb/parallel_for.h>
+
 #include "cairn/core/error.hpp"
 #include "cairn/sim/physics/scene.hpp"
 
@@ -89,17 +91,128 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-/// Runs the scene until every stone stayed slower than settle_speed for settle_hold, or for at
-/// most max_time. Returns whether it settled.
-bool run_settle(Scene& scene, const PhysicsConfig& c, double max_time) {
+/// Runs the scene until, over a window of `hold` seconds, no stone point moved further than
+/// speed * hold (the stones' poses compared at the window's ends, so contact jitter does not
+/// count as motion), or for at most max_time. Returns whether it came to rest.
+bool run_until_rest(Scene& scene, double max_time, double speed, double hold) {
   const double end = scene.time() + max_time;
-  double calm = 0.0;
+  const auto poses = [&] {
+    std::vector<Isometry3d> p;
+    for (int k = 0; k < scene.num_stones(); ++k) p.push_back(scene.stone_body_pose(k));
+    return p;
+  };
+  std::vector<Isometry3d> before = poses();
+  double window_end = scene.time() + hold;
   while (scene.time() < end) {
     scene.step();
-    calm = scene.max_stone_speed() < c.settle_speed ? calm + c.timestep : 0.0;
-    if (calm >= c.settle_hold) return true;
+    if (scene.time() < window_end) continue;
+    const std::vector<Isometry3d> now = poses();
+    double moved = 0.0;
+    for (int k = 0; k < scene.num_stones(); ++k) {
+      const Isometry3d d = before[static_cast<std::size_t>(k)].inverse() * now[static_cast<std::size_t>(k)];
+      moved = std::max(moved, d.translation().norm() + rotation_angle(d.linear()) * scene.stone_radius(k));
+    }
+    if (moved < speed * hold) return true;
+    before = now;
+    window_end = scene.time() + hold;
   }
   return false;
+}
+
+/// World-frame box of points given in frame T.
+Eigen::AlignedBox3d world_box(const Isometry3d& T, const std::vector<Vector3d>& points) {
+  Eigen::AlignedBox3d box;
+  for (const Vector3d& p : points) box.extend(T * p);
+  return box;
+}
+
+std::vector<Vector3d> box_corners(const Eigen::AlignedBox3d& b) {
+  std::vector<Vector3d> corners;
+  for (int i = 0; i < 8; ++i) corners.push_back(b.corner(static_cast<Eigen::AlignedBox3d::CornerType>(i)));
+  return corners;
+}
+
+/// Union-find over stones: stones `joined(a, b)` end in one group; groups listed by their
+/// smallest member, members ascending.
+template <class Joined>
+std::vector<std::vector<int>> groups(int n, Joined&& joined) {
+  std::vector<int> parent(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) parent[static_cast<std::size_t>(i)] = i;
+  const auto root = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    return i;
+  };
+  for (int a = 0; a < n; ++a) {
+    for (int b = a + 1; b < n; ++b) {
+      if (joined(a, b)) parent[static_cast<std::size_t>(std::max(root(a), root(b)))] = std::min(root(a), root(b));
+    }
+  }
+  std::vector<std::vector<int>> out;
+  std::vector<int> slot(static_cast<std::size_t>(n), -1);
+  for (int i = 0; i < n; ++i) {
+    const int r = root(i);
+    if (slot[static_cast<std::size_t>(r)] < 0) {
+      slot[static_cast<std::size_t>(r)] = static_cast<int>(out.size());
+      out.emplace_back();
+    }
+    out[static_cast<std::size_t>(slot[static_cast<std::size_t>(r)])].push_back(i);
+  }
+  return out;
+}
+
+bool boxes_near(const Eigen::AlignedBox3d& a, const Eigen::AlignedBox3d& b, double gap) {
+  Eigen::AlignedBox3d grown = a;
+  grown.min().array() -= gap;
+  grown.max().array() += gap;
+  return grown.intersects(b);
+}
+
+/// Trials: which stones are free bodies. Free: the target stone and every stone within
+/// free_margin of the gripper (at its opening) or the carried stone anywhere along the planned
+/// path, sampled every kPathSample, plus the stones touching a free stone (island_gap).
+constexpr double kPathSample = 0.25;  // [m]
+
+std::vector<bool> free_stones(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
+                              const PhysicsConfig& c, const Isometry3d& pre_grasp) {
+  const int n = static_cast<int>(site.stones.size());
+  std::vector<Vector3d> gripper_points;
+  for (const ConvexPart& p : gripper_parts(gripper, plan.opening)) {
+    gripper_points.insert(gripper_points.end(), p.vertices.begin(), p.vertices.end());
+  }
+  const Isometry3d lifted = translated_world(plan.T_world_gripper, plan.lift_height * Vector3d::UnitZ());
+  const Isometry3d above_place = translated_world(plan.T_world_place, plan.lift_height * Vector3d::UnitZ());
+  const std::vector<Isometry3d> waypoints = {pre_grasp, plan.T_world_gripper, lifted, above_place, plan.T_world_place};
+  // The carried stone's box in the gripper frame at grasp (target, or the stones around the jaws).
+  std::vector<Vector3d> carried;
+  if (plan.target_stone >= 0) {
+    carried = box_corners(site.stones[static_cast<std::size_t>(plan.target_stone)].bounds);
+    for (Vector3d& p : carried) p = plan.T_world_gripper.inverse() * p;
+  }
+  std::vector<Eigen::AlignedBox3d> swept;
+  for (std::size_t w = 0; w + 1 < waypoints.size(); ++w) {
+    const std::optional<Vector2d> pivot = w == 2 ? plan.swing_pivot : std::nullopt;
+    const int samples = 1 + static_cast<int>(std::ceil(path_length(waypoints[w], waypoints[w + 1], pivot) / kPathSample));
+    for (int i = 0; i <= samples; ++i) {
+      const Isometry3d T = interpolate(waypoints[w], waypoints[w + 1], static_cast<double>(i) / samples, pivot);
+      swept.push_back(world_box(T, gripper_points));
+      if (w >= 1 && !carried.empty()) swept.push_back(world_box(T, carried));
+    }
+  }
+  std::vector<bool> free(static_cast<std::size_t>(n), false);
+  for (int k = 0; k < n; ++k) {
+    const auto& b = site.stones[static_cast<std::size_t>(k)].bounds;
+    free[static_cast<std::size_t>(k)] =
+        k == plan.target_stone ||
+        std::any_of(swept.begin(), swept.end(), [&](const Eigen::AlignedBox3d& s) { return boxes_near(s, b, c.free_margin); });
+  }
+  // Stones touching a free stone move with it (piles).
+  for (const auto& g : groups(n, [&](int a, int b) {
+         return boxes_near(site.stones[static_cast<std::size_t>(a)].bounds, site.stones[static_cast<std::size_t>(b)].bounds, c.island_gap);
+       })) {
+    const bool any = std::any_of(g.begin(), g.end(), [&](int k) { return free[static_cast<std::size_t>(k)]; });
+    for (int k : g) free[static_cast<std::size_t>(k)] = any;
+  }
+  return free;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -109,7 +222,7 @@ class Trial {
   Trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
         const PhysicsConfig& config)
       : plan_(plan), c_(config), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
-        scene_(site, spec(site, plan, pre_grasp_), gripper, config) {
+        scene_(site, spec(site, plan, gripper, config, pre_grasp_), gripper, config) {
     target_ = pre_grasp_;
     scene_.set_gripper_target(target_);
     scene_.set_jaw_command(-1.0);
@@ -120,6 +233,10 @@ class Trial {
     const auto wall_start = std::chrono::steady_clock::now();
     scene_.set_jaw_command(-1.0);
     bool ok = phase("settle_in", [&] { return wait(c_.initial_settle_time, [&] { return approach_clear(); }); });
+    for (int k = 0; k < scene_.num_stones(); ++k) r_.initial_stone_poses.push_back(scene_.stone_pose(k));
+    r_.initial_max_speed = scene_.max_stone_speed();
+    r_.free_stones = 0;
+    for (int k = 0; k < scene_.num_stones(); ++k) r_.free_stones += scene_.is_free(k) ? 1 : 0;
     ok = ok && phase("approach", [&] {
       return move(plan_.T_world_gripper, c_.approach_speed, false, [&] { return approach_clear(); });
     });
@@ -156,7 +273,9 @@ class Trial {
                     false, [] { return true; });
       });
     }
-    phase("settle", [&] { return r_.settled = run_settle(scene_, c_, c_.settle_time); });
+    phase("settle", [&] {
+      return r_.settled = wait_for_rest(c_.settle_time);
+    });
 
     for (int k = 0; k < scene_.num_stones(); ++k) r_.stone_poses.push_back(scene_.stone_pose(k));
     if (ok && r_.grasped_stone >= 0) {
@@ -178,9 +297,11 @@ class Trial {
   }
 
  private:
-  static detail::SceneSpec spec(const Site& site, const GraspPlan& plan, const Isometry3d& pre_grasp) {
+  static detail::SceneSpec spec(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
+                                const PhysicsConfig& config, const Isometry3d& pre_grasp) {
     detail::SceneSpec s;
     s.start_poses.assign(site.stones.size(), Isometry3d::Identity());
+    s.free = free_stones(site, plan, gripper, config, pre_grasp);
     s.with_gripper = true;
     s.T_world_gripper = pre_grasp;
     s.opening = plan.opening;
@@ -193,11 +314,32 @@ class Trial {
   template <class F>
   bool phase(const char* name, F&& body) {
     PhaseTiming t{.name = name, .start = scene_.time(), .end = 0.0};
+    const auto wall_start = std::chrono::steady_clock::now();
     const bool ok = body();
     t.end = scene_.time();
+    t.wall = seconds_since(wall_start);
     r_.phases.push_back(std::move(t));
     phase_name_ = name;
     return ok;
+  }
+
+  /// One physics step; every trace_interval the machine's signals are recorded.
+  void step() {
+    scene_.step();
+    if (scene_.time() + 0.5 * c_.timestep < next_trace_) return;
+    next_trace_ += c_.trace_interval;
+    r_.trace.push_back({.time = scene_.time(), .opening = scene_.opening(), .arm_load = scene_.arm_load()});
+  }
+
+  bool wait_for_rest(double max_time) {
+    const double end = scene_.time() + max_time;
+    double calm = 0.0;
+    while (scene_.time() < end) {
+      step();
+      calm = scene_.max_stone_speed() < c_.settle_speed ? calm + c_.timestep : 0.0;
+      if (calm >= c_.settle_hold) return true;
+    }
+    return false;
   }
 
   /// Steps for `duration`; stops early (returning false) when monitor() returns false.
@@ -205,7 +347,7 @@ class Trial {
   bool wait(double duration, F&& monitor) {
     const double end = scene_.time() + duration;
     while (scene_.time() < end) {
-      scene_.step();
+      step();
       if (!monitor()) return false;
     }
     return true;
@@ -224,7 +366,7 @@ class Trial {
     while (scene_.time() - start < duration) {
       target_ = interpolate(from, to, min_jerk((scene_.time() - start + c_.timestep) / duration), pivot);
       scene_.set_gripper_target(target_);
-      scene_.step();
+      step();
       if (!monitor()) return false;
     }
     return true;
@@ -272,7 +414,7 @@ class Trial {
     const double start = scene_.time();
     double stopped = 0.0;
     while (scene_.time() - start < c_.close_time) {
-      scene_.step();
+      step();
       for (const Contact& c : scene_.contacts()) {
         if (detail::is_gripper(c.a) && c.b == detail::kTerrain && hard(c)) {
           fail(reason::kCollisionClose, "close: " + detail::entity_name(c.a) + " hit the terrain" + at_time() + depth_text(c));
@@ -412,6 +554,7 @@ class Trial {
   bool gripped_ = false;
   double opening_at_lift_ = 0.0;
   std::string phase_name_;
+  double next_trace_ = 0.0;
   GraspTrialResult r_;
 };
 
@@ -421,8 +564,13 @@ void validate(const PhysicsConfig& c) {
   const auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   const auto non_negative = [](double v) { return std::isfinite(v) && v >= 0.0; };
   require(positive(c.timestep), "timestep must be > 0");
+  require(c.hull_subdivisions <= 5, "hull_subdivisions must be <= 5");
+  require(c.cone == "pyramidal" || c.cone == "elliptic", "cone must be pyramidal or elliptic");
+  require(c.solver_iterations >= 1 && positive(c.solver_tolerance) && c.noslip_iterations >= 0,
+          "solver_iterations >= 1, solver_tolerance > 0, noslip_iterations >= 0");
   require(positive(c.rock_density), "rock_density must be > 0");
-  require(non_negative(c.friction) && non_negative(c.torsional_friction) && non_negative(c.rolling_friction),
+  require(non_negative(c.friction) && non_negative(c.torsional_friction) && non_negative(c.rolling_friction) &&
+              non_negative(c.ground_rolling_friction),
           "friction coefficients must be >= 0");
   require(positive(c.contact_timeconst) && positive(c.arm_timeconst), "time constants must be > 0");
   require(c.contact_timeconst >= 2.0 * c.timestep && c.arm_timeconst >= 2.0 * c.timestep,
@@ -439,7 +587,7 @@ void validate(const PhysicsConfig& c) {
   require(non_negative(c.initial_settle_time) && positive(c.close_time) && non_negative(c.hold_time) &&
               non_negative(c.release_time) && non_negative(c.settle_time),
           "phase times must be >= 0 (close_time > 0)");
-  require(positive(c.settle_speed) && non_negative(c.settle_hold) && positive(c.jaw_stop_speed), "rest thresholds must be > 0");
+  require(positive(c.settle_speed) && positive(c.settle_hold) && positive(c.jaw_stop_speed), "rest thresholds must be > 0");
   require(non_negative(c.relax_time) && positive(c.relax_timeconst), "relax_time >= 0, relax_timeconst > 0");
   require(positive(c.collision_force), "collision_force must be > 0");
   require(positive(c.jaw_slip_threshold), "jaw_slip_threshold must be > 0");
@@ -447,6 +595,9 @@ void validate(const PhysicsConfig& c) {
               positive(c.drop_distance),
           "collision_depth >= 0; slip_threshold, slip_angle_threshold, drop_distance > 0");
   require(c.place_support_fraction > 0.0 && c.place_support_fraction <= 1.0, "place_support_fraction must lie in (0, 1]");
+  require(non_negative(c.free_margin) && non_negative(c.island_gap), "free_margin and island_gap must be >= 0");
+  require(positive(c.site_settle_time) && positive(c.rest_speed) && positive(c.rest_hold),
+          "site_settle_time, rest_speed and rest_hold must be > 0");
 }
 
 GraspTrialResult run_grasp_trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
@@ -473,14 +624,15 @@ GraspTrialResult run_grasp_trial(const Site& site, const GraspPlan& plan, const 
   return trial.run();
 }
 
-SettleResult settle_stones(const Site& site, const PhysicsConfig& config, std::span<const Eigen::Isometry3d> start_poses) {
-  validate(config);
-  if (!start_poses.empty() && start_poses.size() != site.stones.size()) {
-    throw InputError("settle_stones: " + std::to_string(start_poses.size()) + " start poses for " +
-                     std::to_string(site.stones.size()) + " stones");
-  }
+namespace {
+
+/// Settles `site` from the given start poses (empty: all at placement) until every stone point
+/// stayed slower than `speed` for `hold`, at most max_time.
+SettleResult settle_until_rest(const Site& site, const PhysicsConfig& config, std::span<const Isometry3d> start_poses,
+                               double max_time, double speed, double hold, std::vector<Vector2d> extra_xy = {}) {
   const auto wall_start = std::chrono::steady_clock::now();
   detail::SceneSpec spec;
+  spec.extra_xy = std::move(extra_xy);
   spec.start_poses.assign(site.stones.size(), Isometry3d::Identity());
   for (std::size_t k = 0; k < start_poses.size(); ++k) {
     require_pose(start_poses[k], "start pose of stone " + std::to_string(k));
@@ -491,12 +643,156 @@ SettleResult settle_stones(const Site& site, const PhysicsConfig& config, std::s
   for (const Isometry3d& T : spec.start_poses) at_placement.push_back(T.isApprox(Isometry3d::Identity()));
   scene.relax(config, at_placement);
   SettleResult r;
-  r.settled = run_settle(scene, config, config.settle_time);
+  r.settled = run_until_rest(scene, max_time, speed, hold);
   r.max_speed = scene.max_stone_speed();
   for (int k = 0; k < scene.num_stones(); ++k) r.stone_poses.push_back(scene.stone_pose(k));
   r.sim_time = scene.time();
   r.wall_time = seconds_since(wall_start);
   return r;
+}
+
+/// The site with only the listed stones (same terrain).
+Site site_subset(const Site& site, const std::vector<int>& members) {
+  Site sub;
+  sub.terrain_config = site.terrain_config;
+  sub.stone_config = site.stone_config;
+  sub.terrain = site.terrain;
+  for (int k : members) sub.stones.push_back(site.stones[static_cast<std::size_t>(k)]);
+  return sub;
+}
+
+std::vector<std::vector<int>> islands(const Site& site, double gap) {
+  return groups(static_cast<int>(site.stones.size()), [&](int a, int b) {
+    return boxes_near(site.stones[static_cast<std::size_t>(a)].bounds, site.stones[static_cast<std::size_t>(b)].bounds, gap);
+  });
+}
+
+/// Largest displacement of a stone point [m] under the poses (centroid shift + rotation x radius).
+double largest_motion(const Site& site, std::span<const Isometry3d> poses) {
+  double moved = 0.0;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const Stone& s = site.stones[k];
+    double radius = 0.0;
+    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) radius = std::max(radius, (s.mesh.vertices.world(i) - s.centroid).norm());
+    moved = std::max(moved, (poses[k] * s.centroid - s.centroid).norm() + rotation_angle(poses[k].linear()) * radius);
+  }
+  return moved;
+}
+
+/// One island: settles from the generated poses, then restarts the physics from where the stones
+/// came to rest (as every later scene of the site will, without the warm start of the running
+/// simulation) until a restart moves no stone point more than rest_speed x rest_hold, at most
+/// kMaxRestarts times. Stone poses compose over the restarts.
+constexpr int kMaxRestarts = 4;
+
+SettleResult settle_island(Site island, const PhysicsConfig& config, const std::vector<Vector2d>& region) {
+  SettleResult total = settle_until_rest(island, config, {}, config.site_settle_time, config.rest_speed,
+                                         config.rest_hold, region);
+  apply_stone_poses(island, total.stone_poses);
+  island.at_rest = true;
+  for (int restart = 0; restart < kMaxRestarts && total.settled; ++restart) {
+    const SettleResult again = settle_until_rest(island, config, {}, config.site_settle_time, config.rest_speed,
+                                                 config.rest_hold, region);
+    apply_stone_poses(island, again.stone_poses);
+    for (std::size_t k = 0; k < total.stone_poses.size(); ++k) total.stone_poses[k] = again.stone_poses[k] * total.stone_poses[k];
+    total.sim_time += again.sim_time;
+    total.wall_time += again.wall_time;
+    total.settled = again.settled;
+    if (largest_motion(island, again.stone_poses) < config.rest_speed * config.rest_hold) break;
+  }
+  return total;
+}
+
+}  // namespace
+
+SettleResult settle_stones(const Site& site, const PhysicsConfig& config, std::span<const Eigen::Isometry3d> start_poses) {
+  validate(config);
+  if (!start_poses.empty() && start_poses.size() != site.stones.size()) {
+    throw InputError("settle_stones: " + std::to_string(start_poses.size()) + " start poses for " +
+                     std::to_string(site.stones.size()) + " stones");
+  }
+  return settle_until_rest(site, config, start_poses, config.settle_time, config.settle_speed, config.settle_hold);
+}
+
+SiteSettleResult settle_site(Site& site, const PhysicsConfig& physics) {
+  validate(physics);
+  // No seats: the stones come to rest on the height field itself, as every later scene of the
+  // site holds it (overlaps of the generated placement resolve in the gentle start).
+  PhysicsConfig config = physics;
+  config.seat_clearance = -1.0;
+  const auto wall_start = std::chrono::steady_clock::now();
+  site.at_rest = false;
+  const Site generated = site;
+  const int n = static_cast<int>(site.stones.size());
+  SiteSettleResult r;
+  r.stone_poses.assign(static_cast<std::size_t>(n), Isometry3d::Identity());
+  std::vector<std::vector<int>> partition = islands(generated, config.island_gap);
+  // Every island's height field covers the whole terrain: a stone may roll far, never off it.
+  const Vector2d half(0.5 * generated.terrain.config.size_x, 0.5 * generated.terrain.config.size_y);
+  const std::vector<Vector2d> region = {-half, half};
+  std::vector<bool> todo(partition.size(), true);
+  std::vector<bool> island_settled(partition.size(), false);
+  while (true) {
+    ++r.rounds;
+    std::vector<SettleResult> results(partition.size());
+    tbb::parallel_for(std::size_t{0}, partition.size(), [&](std::size_t i) {
+      if (!todo[i]) return;
+      results[i] = settle_island(site_subset(generated, partition[i]), config, region);
+    });
+    for (std::size_t i = 0; i < partition.size(); ++i) {
+      if (!todo[i]) continue;
+      r.sim_time += results[i].sim_time;
+      island_settled[i] = results[i].settled;
+      for (std::size_t j = 0; j < partition[i].size(); ++j) {
+        r.stone_poses[static_cast<std::size_t>(partition[i][j])] = results[i].stone_poses[j];
+      }
+    }
+    // Islands whose stones came to rest near each other join and settle again, together.
+    Site moved = generated;
+    apply_stone_poses(moved, r.stone_poses);
+    std::vector<int> island_of(static_cast<std::size_t>(n));
+    for (std::size_t i = 0; i < partition.size(); ++i) {
+      for (int k : partition[i]) island_of[static_cast<std::size_t>(k)] = static_cast<int>(i);
+    }
+    const auto joined = groups(n, [&](int a, int b) {
+      return island_of[static_cast<std::size_t>(a)] == island_of[static_cast<std::size_t>(b)] ||
+             boxes_near(moved.stones[static_cast<std::size_t>(a)].bounds, moved.stones[static_cast<std::size_t>(b)].bounds,
+                        config.island_gap);
+    });
+    if (joined.size() == partition.size()) break;
+    std::vector<bool> next_todo, next_settled;
+    for (const auto& g : joined) {
+      const bool same = std::find(partition.begin(), partition.end(), g) != partition.end();
+      next_todo.push_back(!same);
+      next_settled.push_back(same && island_settled[static_cast<std::size_t>(
+                                         std::find(partition.begin(), partition.end(), g) - partition.begin())]);
+    }
+    partition = joined;
+    todo = next_todo;
+    island_settled = next_settled;
+  }
+  r.islands = static_cast<int>(partition.size());
+  r.settled = std::all_of(island_settled.begin(), island_settled.end(), [](bool b) { return b; });
+  for (int k = 0; k < n; ++k) {
+    const Isometry3d& T = r.stone_poses[static_cast<std::size_t>(k)];
+    const Vector3d c = generated.stones[static_cast<std::size_t>(k)].centroid;
+    r.max_displacement = std::max(r.max_displacement, (T * c - c).norm());
+    r.max_rotation = std::max(r.max_rotation, rotation_angle(T.linear()));
+  }
+  apply_stone_poses(site, r.stone_poses);
+  site.at_rest = true;
+  r.wall_time = seconds_since(wall_start);
+  return r;
+}
+
+std::vector<double> collision_hull_volumes(const Site& site, const PhysicsConfig& config) {
+  validate(config);
+  detail::SceneSpec spec;
+  spec.start_poses.assign(site.stones.size(), Isometry3d::Identity());
+  const Scene scene(site, spec, GripperConfig{}, config);
+  std::vector<double> volumes;
+  for (int k = 0; k < scene.num_stones(); ++k) volumes.push_back(scene.hull_volume(k));
+  return volumes;
 }
 
 void apply_stone_poses(Site& site, std::span<const Eigen::Isometry3d> poses) {

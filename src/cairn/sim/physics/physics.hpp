@@ -32,12 +32,27 @@ namespace cairn::sim {
 struct PhysicsConfig {
   // Simulation and materials.
   double timestep = 0.002;           // [s] MuJoCo time step
+  /// Friction cone: "pyramidal" (2 (condim - 1) constraint rows per contact) or "elliptic"
+  /// (condim rows; MuJoCo's Newton solver handles it directly).
+  std::string cone = "pyramidal";
+  int solver_iterations = 100;       // MuJoCo <option iterations>
+  double solver_tolerance = 1e-8;    // MuJoCo <option tolerance>
+  /// MuJoCo's no-slip post-pass (<option noslip_iterations>): removes the slow creep of soft
+  /// frictional contacts, so touching stones at rest stay at rest (0: off).
+  int noslip_iterations = 0;
   double rock_density = 2600.0;      // [kg/m^3] granite/limestone boulders
+  /// Collision hull of a stone: MuJoCo's convex hull of the mesh's extreme vertices along the
+  /// 10 * 4^s + 2 directions of an icosphere with s = hull_subdivisions (< 0: of every vertex).
+  int hull_subdivisions = 3;
   double friction = 0.6;             // sliding friction of every contact (rock–rock, rock–steel)
   double torsional_friction = 0.02;  // [m] torsional friction (resists spinning about a contact)
   /// [m] rolling friction: stands in for the gravel bed and the concavities the convex hulls
   /// smooth away, so rounded stones come to rest on slopes instead of rolling on.
   double rolling_friction = 0.02;
+  /// [m] rolling friction of stone-ground contacts (MuJoCo takes the larger of the two geoms'):
+  /// a 0.5-1 m^3 boulder beds into the gravel instead of rolling down a 5 % slope like a ball
+  /// (0.1 m holds a 0.6 m radius stone on slopes up to ~16 %).
+  double ground_rolling_friction = 0.1;
   /// [s] contact softness (MuJoCo solref time constant, >= 2 * timestep). The jaws press with
   /// tens of kN on a few hundred kg; softer contacts let them sink cm deep into the stone.
   double contact_timeconst = 0.005;
@@ -92,14 +107,35 @@ struct PhysicsConfig {
   double place_support_fraction = 0.3;  // lowering stops when the ground carries this share of
                                         // the stone's weight (or at the place pose)
   bool abort_on_failure = true;  // on a failure: open the jaws, retract upwards, settle
+  /// [m] trials: only stones within this distance of the gripper's path (pre-grasp, grasp, lift,
+  /// place; boxes around the jaws and the carried stone), and the stones touching those, are free
+  /// bodies; the rest are static. A stone at rest that nothing can reach stays at rest, and each
+  /// free stone costs a height-field collision per step (docs/simulator-physics.md, speed).
+  double free_margin = 0.0;
+  double trace_interval = 0.02;  // [s] trials: sampling of the jaw opening and arm load traces
+  // Settling a whole site at generation (settle_site): the world at rest before anything is sensed.
+  /// [m] stones whose bounding boxes come closer than this settle in one scene (an island);
+  /// separate islands settle in separate scenes, in parallel.
+  double island_gap = 0.3;
+  double site_settle_time = 8.0;  // [s] longest settling of an island
+  /// [m/s] a site is at rest when no stone point moved more than rest_speed * rest_hold over
+  /// the last rest_hold seconds
+  double rest_speed = 0.002;
+  double rest_hold = 0.25;  // [s]
 
   template <class V>
   void visit(V& v) {
     v("timestep", timestep, "[s] MuJoCo time step");
+    v("cone", cone, "friction cone: pyramidal | elliptic");
+    v("solver_iterations", solver_iterations, "MuJoCo solver iterations per step");
+    v("solver_tolerance", solver_tolerance, "MuJoCo solver tolerance");
+    v("noslip_iterations", noslip_iterations, "MuJoCo no-slip iterations (0: off)");
     v("rock_density", rock_density, "[kg/m^3] stone density (mass = mesh volume * density)");
+    v("hull_subdivisions", hull_subdivisions, "collision hull from the extreme vertices along 10*4^s+2 directions (< 0: all)");
     v("friction", friction, "sliding friction coefficient of all contacts");
     v("torsional_friction", torsional_friction, "[m] torsional friction of all contacts");
     v("rolling_friction", rolling_friction, "[m] rolling friction of all contacts");
+    v("ground_rolling_friction", ground_rolling_friction, "[m] rolling friction of stone-ground contacts (gravel bed)");
     v("contact_timeconst", contact_timeconst, "[s] contact softness (solref time constant)");
     v("contact_impedance", contact_impedance, "contact solimp dmax (dmin = dmax - 0.04)");
     v("terrain_resolution", terrain_resolution, "[m] height-field sample spacing");
@@ -135,6 +171,12 @@ struct PhysicsConfig {
     v("place_support_fraction", place_support_fraction,
       "share of the weight on the ground that ends lowering");
     v("abort_on_failure", abort_on_failure, "open, retract and settle as soon as a grasp fails");
+    v("free_margin", free_margin, "[m] trials: stones this close to the gripper path are free bodies");
+    v("trace_interval", trace_interval, "[s] trials: sampling interval of the jaw and load traces");
+    v("island_gap", island_gap, "[m] site settling: stones closer than this settle together");
+    v("site_settle_time", site_settle_time, "[s] site settling: longest settling of one island");
+    v("rest_speed", rest_speed, "[m/s] site settling: largest mean point speed over a window at rest");
+    v("rest_hold", rest_hold, "[s] site settling: the window");
   }
 };
 
@@ -175,6 +217,16 @@ inline constexpr const char* kDropped = "dropped";  // stone left the jaws while
 struct PhaseTiming {
   std::string name;  // approach, close, lift, move, hold, place, release, retreat, settle, abort
   double start = 0.0, end = 0.0;  // [s] simulated time
+  double wall = 0.0;              // [s] elapsed (not deterministic)
+};
+
+/// What the machine measures during a trial (Sec. 6.3: slip shows as the jaws closing further,
+/// a drop as the arm's load falling): the jaw opening (its wire-draw encoder) and the load the arm
+/// carries beyond the gripper's own weight (from the force of the arm's weld on the gripper).
+struct TraceSample {
+  double time = 0.0;      // [s] simulated
+  double opening = 0.0;   // [m] distance between the jaws' inner faces
+  double arm_load = 0.0;  // [N] vertical load on the arm minus the gripper's weight (static)
 };
 
 struct GraspTrialResult {
@@ -192,6 +244,12 @@ struct GraspTrialResult {
   /// Per stone T_world_stone after settling (identity = at its placement in the given Site).
   std::vector<Eigen::Isometry3d> stone_poses;
   bool settled = false;          // all stones at rest at the end
+  /// Per stone T_world_stone after the initial settle-in, before the gripper moves (identity =
+  /// the world was at rest), and the largest stone point speed then [m/s].
+  std::vector<Eigen::Isometry3d> initial_stone_poses;
+  double initial_max_speed = 0.0;
+  int free_stones = 0;  // stones simulated as free bodies (the rest static: PhysicsConfig::free_margin)
+  std::vector<TraceSample> trace;  // every PhysicsConfig::trace_interval
   std::vector<PhaseTiming> phases;
   double sim_time = 0.0;   // [s] simulated
   double wall_time = 0.0;  // [s] elapsed (not deterministic)
@@ -218,6 +276,28 @@ struct SettleResult {
 /// start_poses has the wrong size.
 SettleResult settle_stones(const Site& site, const PhysicsConfig& config,
                            std::span<const Eigen::Isometry3d> start_poses = {});
+
+/// The world at rest: settles every stone of `site` in the physics and moves the site's stones to
+/// where they came to rest (apply_stone_poses). Stones form islands (bounding boxes within
+/// island_gap); each island settles in its own scene (stones of other islands absent), islands in
+/// parallel, until every stone point stayed slower than rest_speed for rest_hold (at most
+/// site_settle_time). When a stone comes to rest near another island, the joined island is
+/// settled again from the generated poses, so stones that meet interact. Deterministic.
+struct SiteSettleResult {
+  std::vector<Eigen::Isometry3d> stone_poses;  // T_world_stone relative to the generated placement
+  bool settled = false;       // every island came to rest
+  int islands = 0;            // islands of the final partition
+  int rounds = 0;             // settling rounds (> 1 when islands joined)
+  double max_displacement = 0.0;  // [m] largest centroid motion of a stone
+  double max_rotation = 0.0;      // [rad] largest rotation of a stone
+  double sim_time = 0.0;   // [s] simulated, summed over islands and rounds
+  double wall_time = 0.0;  // [s]
+};
+SiteSettleResult settle_site(Site& site, const PhysicsConfig& config);
+
+/// Volume [m^3] of each stone's collision hull as MuJoCo builds it (hull_subdivisions): the
+/// convex hull adds what the mesh's concavities leave out (docs/simulator-physics.md).
+std::vector<double> collision_hull_volumes(const Site& site, const PhysicsConfig& config);
 
 /// Moves the stones of `site` by their poses (mesh vertices, centroid, bounds, yaw += rotation
 /// about z), so sampling the site afterwards sees the moved world. Throws InputError when the

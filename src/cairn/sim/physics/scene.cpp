@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <mutex>
 #include <sstream>
 
 #include "cairn/core/error.hpp"
@@ -19,8 +20,14 @@ using Eigen::Vector3d;
 
 constexpr double kMinElevationRange = 1e-3;  // [m] MuJoCo needs a positive height-field range
 constexpr double kJawGap = 0.005;            // [m] fully closed jaws stop this far apart
-constexpr int kMaxContacts = 400;            // MuJoCo nconmax
-constexpr int kMaxConstraintRows = 3000;     // MuJoCo njmax (condim 6, pyramidal: 10 per contact)
+// Contact buffers, sized by the free bodies: MuJoCo 2.2.2 allocates njmax^2 doubles (efc_AR)
+// and clears them when it makes its data (three times per load), so oversized buffers cost more
+// than the simulation itself (0.6 s per scene at njmax 3000). Measured: a stone on the height
+// field has at most ~20 contacts at 0.1 m resolution, a gripper geom a few.
+constexpr int kContactsPerStone = mjMAXCONPAIR + 14;  // its height-field pair + neighbours
+constexpr int kContactsPerGripperGeom = 8;
+constexpr int kContactsSpare = 32;
+constexpr int kRowsPerContact = 10;          // condim 6, pyramidal: 2 (6 - 1) rows
 constexpr double kImpedanceSpan = 0.04;      // solimp dmin = dmax - span
 
 /// MuJoCo reports fatal errors through this hook; the default prints and calls exit().
@@ -56,6 +63,36 @@ MassProperties mass_properties(const io::Mesh& mesh, const Vector3d& reference) 
   return mp;
 }
 
+/// The vertices MuJoCo builds a stone's collision hull from: all of them (subdivisions < 0), or
+/// the extreme vertex along each vertex direction of an icosphere with that many subdivisions
+/// (10 * 4^s + 2 directions), ascending and unique. Fewer hull vertices make every
+/// support-function walk of MuJoCo's convex collisions shorter (docs/simulator-physics.md).
+std::vector<std::size_t> collision_vertices(const io::Mesh& mesh, int subdivisions) {
+  std::vector<std::size_t> out;
+  const std::size_t n = mesh.vertices.size();
+  if (subdivisions < 0 || n <= 10 * (std::size_t{1} << (2 * subdivisions)) + 2) {
+    for (std::size_t i = 0; i < n; ++i) out.push_back(i);
+    return out;
+  }
+  const io::Mesh sphere = make_icosphere(subdivisions);
+  for (std::size_t d = 0; d < sphere.vertices.size(); ++d) {
+    const Eigen::Vector3f dir = sphere.vertices.points[d];
+    std::size_t best = 0;
+    float best_dot = -INFINITY;
+    for (std::size_t i = 0; i < n; ++i) {
+      const float dot = dir.dot(mesh.vertices.points[i]);
+      if (dot > best_dot) {
+        best_dot = dot;
+        best = i;
+      }
+    }
+    out.push_back(best);
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
 std::string quat_attr(const Matrix3d& R) {
   const Eigen::Quaterniond q(R);
   std::ostringstream s;
@@ -85,13 +122,16 @@ struct HeightField {
   std::vector<double> z;  // nrow * ncol
 };
 
+/// Samples the terrain on the world lattice of spacing `res` (x = i res, y = j res) over the
+/// region: every scene of a site sees the same piecewise-linear ground wherever their regions
+/// overlap, so a world at rest in one scene is at rest in the next.
 HeightField sample_terrain(const Terrain& terrain, const Eigen::AlignedBox2d& region, double res) {
   HeightField h;
   h.spacing = res;
-  h.ncol = std::max(2, static_cast<int>(std::ceil(region.sizes().x() / res)) + 1);
-  h.nrow = std::max(2, static_cast<int>(std::ceil(region.sizes().y() / res)) + 1);
-  h.x0 = region.min().x();
-  h.y0 = region.min().y();
+  h.x0 = std::floor(region.min().x() / res) * res;
+  h.y0 = std::floor(region.min().y() / res) * res;
+  h.ncol = std::max(2, static_cast<int>(std::ceil((region.max().x() - h.x0) / res)) + 1);
+  h.nrow = std::max(2, static_cast<int>(std::ceil((region.max().y() - h.y0) / res)) + 1);
   h.z.resize(static_cast<std::size_t>(h.nrow) * static_cast<std::size_t>(h.ncol));
   h.zmin = INFINITY;
   h.zmax = -INFINITY;
@@ -181,8 +221,13 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
              const PhysicsConfig& config) {
   const std::size_t n = site.stones.size();
   if (spec.start_poses.size() != n) throw InputError("physics: one start pose per stone needed");
-  mju_user_error = throw_mujoco_error;
-  mju_user_warning = ignore_mujoco_warning;
+  if (!spec.free.empty() && spec.free.size() != n) throw InputError("physics: one free flag per stone needed");
+  const std::vector<bool> free = spec.free.empty() ? std::vector<bool>(n, true) : spec.free;
+  static std::once_flag hooks;  // MuJoCo's hooks are globals: set once, before any scene exists
+  std::call_once(hooks, [] {
+    mju_user_error = throw_mujoco_error;
+    mju_user_warning = ignore_mujoco_warning;
+  });
 
   // Region of the height field: stones' footprints (at their start poses) and the gripper path.
   Eigen::AlignedBox2d region;
@@ -194,7 +239,7 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
     double radius = 0.0;
     for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
       const Vector3d p = spec.start_poses[k] * s.mesh.vertices.world(i);
-      region.extend(p.head<2>());
+      if (free[k]) region.extend(p.head<2>());  // static stones never touch the terrain
       radius = std::max(radius, (s.mesh.vertices.world(i) - props[k].centroid).norm());
     }
     stone_radius_.push_back(radius);
@@ -204,21 +249,25 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
   region.min().array() -= config.terrain_margin;
   region.max().array() += config.terrain_margin;
   HeightField hf = sample_terrain(site.terrain, region, config.terrain_resolution);
-  const bool carve = config.seat_clearance >= 0.0;
+  const bool carve = config.seat_clearance >= 0.0 && !site.at_rest;
   if (carve) {  // seats reach at most down to the stones' lowest points
     for (const Stone& s : site.stones) hf.zmin = std::min(hf.zmin, s.bounds.min().z() - config.seat_clearance);
   }
   const double half_x = 0.5 * (hf.ncol - 1) * hf.spacing, half_y = 0.5 * (hf.nrow - 1) * hf.spacing;
   const double range = std::max(hf.zmax - hf.zmin, kMinElevationRange);
 
+  const int num_free = static_cast<int>(std::count(free.begin(), free.end(), true));
+  const int gripper_geoms = spec.with_gripper ? 1 + 2 * config.jaw_pads * config.jaw_pads : 0;
+  const int max_contacts = kContactsPerStone * num_free + kContactsPerGripperGeom * gripper_geoms + kContactsSpare;
   std::ostringstream x;
   x.precision(17);
   const std::string friction = num(config.friction) + " " + num(config.torsional_friction) +
                                " " + num(config.rolling_friction);
   x << "<mujoco model=\"cairn_site\">\n"
     << "<compiler angle=\"radian\" inertiafromgeom=\"auto\"/>\n"
-    << "<option timestep=\"" << config.timestep << "\" gravity=\"0 0 -9.81\" cone=\"pyramidal\"/>\n"
-    << "<size nconmax=\"" << kMaxContacts << "\" njmax=\"" << kMaxConstraintRows << "\"/>\n"
+    << "<option timestep=\"" << config.timestep << "\" gravity=\"0 0 -9.81\" cone=\"" << config.cone
+    << "\" jacobian=\"dense\" noslip_iterations=\"" << config.noslip_iterations << "\" iterations=\"" << config.solver_iterations << "\" tolerance=\"" << config.solver_tolerance << "\"/>\n"
+    << "<size nconmax=\"" << max_contacts << "\" njmax=\"" << max_contacts * kRowsPerContact << "\"/>\n"
     << "<default><geom condim=\"6\" friction=\"" << friction << "\" solref=\""
     << config.contact_timeconst << " 1\" solimp=\"" << config.contact_impedance - kImpedanceSpan << ' '
     << config.contact_impedance << " 0.001\"/></default>\n"
@@ -228,20 +277,23 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
   for (std::size_t k = 0; k < n; ++k) {
     const Stone& s = site.stones[k];
     x << "<mesh name=\"stone" << k << "\" vertex=\"";
-    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
-      x << (i ? " " : "") << vec_attr(s.mesh.vertices.world(i) - props[k].centroid);
+    const std::vector<std::size_t> hull = collision_vertices(s.mesh, config.hull_subdivisions);
+    for (std::size_t i = 0; i < hull.size(); ++i) {
+      x << (i ? " " : "") << vec_attr(s.mesh.vertices.world(hull[i]) - props[k].centroid);
     }
     x << "\"/>\n";
   }
   x << "</asset>\n<worldbody>\n"
     << "<geom name=\"terrain\" type=\"hfield\" hfield=\"terrain\" pos=\""
-    << vec_attr({hf.x0 + half_x, hf.y0 + half_y, hf.zmin}) << "\"/>\n";
+    << vec_attr({hf.x0 + half_x, hf.y0 + half_y, hf.zmin}) << "\" friction=\"" << num(config.friction) << ' '
+    << num(config.torsional_friction) << ' ' << num(std::max(config.rolling_friction, config.ground_rolling_friction))
+    << "\"/>\n";
   for (std::size_t k = 0; k < n; ++k) {
     const Isometry3d& S = spec.start_poses[k];
     const double mass = config.rock_density * props[k].volume;
     const Matrix3d I = config.rock_density * props[k].inertia_unit_density;
     x << "<body name=\"stone" << k << "\" pos=\"" << vec_attr(S * props[k].centroid) << "\" quat=\""
-      << quat_attr(S.linear()) << "\">\n<freejoint/>\n"
+      << quat_attr(S.linear()) << "\">\n" << (free[k] ? "<freejoint/>\n" : "")
       << "<inertial pos=\"0 0 0\" mass=\"" << mass << "\" fullinertia=\"" << I(0, 0) << ' '
       << I(1, 1) << ' ' << I(2, 2) << ' ' << I(0, 1) << ' ' << I(0, 2) << ' ' << I(1, 2) << "\"/>\n"
       << "<geom name=\"stone" << k << "\" type=\"mesh\" mesh=\"stone" << k << "\"/>\n</body>\n";
@@ -323,6 +375,7 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
   // normalised to [0, 1] of the elevation range.
   if (carve) {
     for (std::size_t k = 0; k < n; ++k) {
+      if (!free[k]) continue;
       const std::string name = "stone" + std::to_string(k);
       carve_seats(hf, hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), props[k].centroid),
                   config.seat_clearance);
@@ -339,7 +392,7 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
     const std::string name = "stone" + std::to_string(k);
     const int body = mj_name2id(m_, mjOBJ_BODY, name.c_str());
     stone_body_.push_back(body);
-    stone_qvel_.push_back(m_->jnt_dofadr[m_->body_jntadr[body]]);
+    stone_qvel_.push_back(free[k] ? m_->jnt_dofadr[m_->body_jntadr[body]] : -1);
     geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, name.c_str()))] = static_cast<int>(k);
   }
   if (spec.with_gripper) {
@@ -358,20 +411,22 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
       jaw_dof_[j] = m_->jnt_dofadr[jid];
     }
     opening0_ = std::clamp(spec.opening, 0.0, gripper.max_opening);
+    gripper_weight_ = m_->body_subtreemass[gripper_body_] * -m_->opt.gravity[2];
     closing_force_ = gripper.closing_force;
   }
+  at_rest_ = site.at_rest;
   mj_forward(m_, d_);
 }
 
 void Scene::relax(const PhysicsConfig& c, const std::vector<bool>& damped) {
-  if (c.relax_time <= 0.0) return;
+  if (c.relax_time <= 0.0 || at_rest_) return;
   // Soft contacts everywhere and viscous damping on the chosen stones (mass-proportional, so
   // every stone creeps out of overlaps at about the same rate), then the model's own values.
   std::vector<mjtNum> solref(m_->geom_solref, m_->geom_solref + mjNREF * m_->ngeom);
   std::vector<mjtNum> damping(m_->dof_damping, m_->dof_damping + m_->nv);
   for (int g = 0; g < m_->ngeom; ++g) m_->geom_solref[mjNREF * g] = c.relax_timeconst;
   for (std::size_t k = 0; k < stone_body_.size(); ++k) {
-    if (!damped[k]) continue;
+    if (!damped[k] || stone_qvel_[k] < 0) continue;
     const double rate = 1.0 / c.relax_timeconst;
     const double r2 = stone_radius_[k] * stone_radius_[k];
     for (int i = 0; i < 6; ++i) {
@@ -383,8 +438,17 @@ void Scene::relax(const PhysicsConfig& c, const std::vector<bool>& damped) {
   std::copy(solref.begin(), solref.end(), m_->geom_solref);
   std::copy(damping.begin(), damping.end(), m_->dof_damping);
   for (std::size_t k = 0; k < stone_body_.size(); ++k) {
-    if (damped[k]) std::fill_n(d_->qvel + stone_qvel_[k], 6, 0.0);
+    if (damped[k] && stone_qvel_[k] >= 0) std::fill_n(d_->qvel + stone_qvel_[k], 6, 0.0);
   }
+}
+
+double Scene::hull_volume(int k) const {
+  const std::string name = "stone" + std::to_string(k);
+  double volume = 0.0;
+  for (const auto& [a, b, c] : hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), Vector3d::Zero())) {
+    volume += a.dot(b.cross(c)) / 6.0;
+  }
+  return std::abs(volume);
 }
 
 Scene::~Scene() {
@@ -410,6 +474,7 @@ Isometry3d Scene::stone_pose(int k) const {
 }
 
 double Scene::stone_point_speed(int k) const {
+  if (!is_free(k)) return 0.0;
   const mjtNum* v = d_->qvel + stone_qvel_[static_cast<std::size_t>(k)];
   const Vector3d lin(v[0], v[1], v[2]), ang(v[3], v[4], v[5]);
   return lin.norm() + ang.norm() * stone_radius_[static_cast<std::size_t>(k)];
@@ -449,6 +514,17 @@ double Scene::opening() const { return opening0_ - d_->qpos[jaw_qpos_[0]] - d_->
 
 double Scene::jaw_speed() const {
   return std::max(std::abs(d_->qvel[jaw_dof_[0]]), std::abs(d_->qvel[jaw_dof_[1]]));
+}
+
+double Scene::arm_load() const {
+  // Generalised force of the arm's weld on the gripper's vertical dof (the free joint's third,
+  // world z): the sum of J[row, z] * force[row] over the weld's rows (dense Jacobian).
+  const int dof_z = m_->jnt_dofadr[m_->body_jntadr[gripper_body_]] + 2;
+  double up = 0.0;
+  for (int i = 0; i < d_->nefc; ++i) {
+    if (d_->efc_type[i] == mjCNSTR_EQUALITY) up += d_->efc_J[i * m_->nv + dof_z] * d_->efc_force[i];
+  }
+  return up - gripper_weight_;
 }
 
 std::vector<Contact> Scene::contacts() const {

@@ -21,6 +21,9 @@ std::string entity_name(int e);
 
 struct SceneSpec {
   std::vector<Eigen::Isometry3d> start_poses;  // per stone T_world_stone at t = 0
+  /// Per stone: a free body (true) or static (false: no joint, collides only with free bodies, no
+  /// height-field collision). Empty: all free.
+  std::vector<bool> free;
   bool with_gripper = false;
   Eigen::Isometry3d T_world_gripper = Eigen::Isometry3d::Identity();  // gripper start pose
   double opening = 1.0;                   // [m] jaw distance when the joints are at zero
@@ -44,19 +47,25 @@ class Scene {
   Scene& operator=(const Scene&) = delete;
 
   void step() { mj_step(m_, d_); }
-  /// Lets overlaps left by the height field's sampling (stones in their moulds) resolve gently:
+  /// Lets overlaps left by the height field's sampling (stones in their moulds) resolve gently
+  /// (nothing to do for a site at rest):
   /// PhysicsConfig::relax_time with soft contacts and viscous damping on the stones marked in
   /// `damped` (one flag per stone; undamped stones, e.g. dropped ones, fall freely), after which
   /// the damped stones' velocities are zeroed.
   void relax(const PhysicsConfig& config, const std::vector<bool>& damped);
   [[nodiscard]] double time() const { return d_->time; }
   [[nodiscard]] int num_stones() const { return static_cast<int>(stone_body_.size()); }
+  [[nodiscard]] bool is_free(int k) const { return stone_qvel_[static_cast<std::size_t>(k)] >= 0; }
+  /// Volume [m^3] of the convex hull MuJoCo collides for stone k (its mesh as MuJoCo sees it).
+  [[nodiscard]] double hull_volume(int k) const;
 
   /// T_world_stone of stone k relative to its placement in the Site (identity = unmoved).
   [[nodiscard]] Eigen::Isometry3d stone_pose(int k) const;
   /// Body pose of stone k (origin at its original centroid, axes the world's at placement).
   [[nodiscard]] Eigen::Isometry3d stone_body_pose(int k) const;
   [[nodiscard]] double stone_mass(int k) const { return stone_mass_[static_cast<std::size_t>(k)]; }
+  /// Radius of stone k about its centroid [m].
+  [[nodiscard]] double stone_radius(int k) const { return stone_radius_[static_cast<std::size_t>(k)]; }
   /// Largest speed of any point of stone k [m/s].
   [[nodiscard]] double stone_point_speed(int k) const;
   /// Largest point speed over all stones [m/s].
@@ -69,6 +78,9 @@ class Scene {
   void set_jaw_command(double u);
   [[nodiscard]] double opening() const;
   [[nodiscard]] double jaw_speed() const;  // largest |jaw joint velocity| [m/s]
+  /// Vertical force [N] the arm (the weld to the mocap target) exerts on the gripper beyond the
+  /// gripper's own weight: the load cell of the arm.
+  [[nodiscard]] double arm_load() const;
 
   /// Current contacts between different entities.
   [[nodiscard]] std::vector<Contact> contacts() const;
@@ -81,11 +93,12 @@ class Scene {
   mjModel* m_ = nullptr;
   mjData* d_ = nullptr;
   std::vector<int> stone_body_;
-  std::vector<int> stone_qvel_;            // dof address of each stone's free joint
+  std::vector<int> stone_qvel_;            // dof address of each stone's free joint (-1: static)
   std::vector<Eigen::Vector3d> centroid_;  // original centroids
   std::vector<double> stone_mass_, stone_radius_;
   std::vector<int> geom_entity_;
-  double opening0_ = 0.0, closing_force_ = 0.0;
+  double opening0_ = 0.0, closing_force_ = 0.0, gripper_weight_ = 0.0;
+  bool at_rest_ = false;  // Site::at_rest: no seats, no gentle start
   int gripper_body_ = -1, mocap_ = -1, jaw_qpos_[2] = {-1, -1}, jaw_dof_[2] = {-1, -1};
 };
 
