@@ -46,7 +46,8 @@ BENCHMARK(BM_SettleSite)
 
 /// Centred top-down grasp of stone range(0) of the settled exp1 site, seed 1.
 void BM_GraspTrial(benchmark::State& state) {
-  const SimulationConfig cfg = scenario_config("exp1", default_real_mesh_dir());
+  SimulationConfig cfg = scenario_config("exp1", default_real_mesh_dir());
+  cfg.settle_in_physics = true;
   static const Site site = make_site(cfg, 1);
   const int k = static_cast<int>(state.range(0));
   GraspPlan plan = centred_antipodal_grasp(site.stones[static_cast<std::size_t>(k)], cfg.gripper, &site.terrain);

@@ -65,8 +65,7 @@ int run_grasp_trial(const GraspTrialArgs& a) {
     sim_cfg = sim::scenario_config(a.scenario, sim::default_real_mesh_dir());
   } else {
     sim_cfg.site = sim::SiteConfig{};
-    sim_cfg.site.stones.embed_depth = 0.0;
-    sim_cfg.site.stones.settle = true;
+    sim_cfg.site.stones.settle = !a.no_settle;  // tipped onto its support before the physics settle
   }
   sim_cfg.physics = cfg.physics;
   sim_cfg.settle_in_physics = !a.no_settle;
@@ -106,6 +105,12 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   j["stone"] = a.stone;
   j["plan"] = sim::to_json(plan);
   j["site_settle"] = settle_json;
+  // Relative to the raw generated placement (generate_site), settling composed in.
+  nlohmann::json from_generated = nlohmann::json::array();
+  for (std::size_t k = 0; k < r.stone_poses.size(); ++k) {
+    from_generated.push_back(sim::pose_to_json(a.no_settle ? r.stone_poses[k] : r.stone_poses[k] * settled.stone_poses[k]));
+  }
+  j["stone_poses_from_generated"] = from_generated;
   j["config"] = config::to_json(cfg);
   const std::string text = j.dump(2);
   std::cout << text << std::endl;

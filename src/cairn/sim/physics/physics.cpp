@@ -172,21 +172,29 @@ bool boxes_near(const Eigen::AlignedBox3d& a, const Eigen::AlignedBox3d& b, doub
 /// path, sampled every kPathSample, plus the stones touching a free stone (island_gap).
 constexpr double kPathSample = 0.25;  // [m]
 
-std::vector<bool> free_stones(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
-                              const PhysicsConfig& c, const Isometry3d& pre_grasp) {
-  const int n = static_cast<int>(site.stones.size());
+/// Boxes swept by the gripper (at its opening) and the carried stone along the planned path:
+/// approach, lift, move (the swing arc), place, retreat; each grown upwards by approach_distance
+/// (an aborted trial lifts the gripper that far from wherever it stopped). Without a target, a
+/// box between the jaws stands for whatever they grasp.
+std::vector<Eigen::AlignedBox3d> swept_boxes(const GraspPlan& plan, const GripperConfig& gripper,
+                                             const Site& site, const Isometry3d& pre_grasp) {
   std::vector<Vector3d> gripper_points;
   for (const ConvexPart& p : gripper_parts(gripper, plan.opening)) {
     gripper_points.insert(gripper_points.end(), p.vertices.begin(), p.vertices.end());
   }
   const Isometry3d lifted = translated_world(plan.T_world_gripper, plan.lift_height * Vector3d::UnitZ());
   const Isometry3d above_place = translated_world(plan.T_world_place, plan.lift_height * Vector3d::UnitZ());
-  const std::vector<Isometry3d> waypoints = {pre_grasp, plan.T_world_gripper, lifted, above_place, plan.T_world_place};
-  // The carried stone's box in the gripper frame at grasp (target, or the stones around the jaws).
+  const Isometry3d retreat = plan.T_world_place * Eigen::Translation3d(-plan.approach_distance, 0, 0);
+  const std::vector<Isometry3d> waypoints = {pre_grasp, plan.T_world_gripper, lifted, above_place, plan.T_world_place, retreat};
+  // The carried stone's box in the gripper frame at grasp.
   std::vector<Vector3d> carried;
   if (plan.target_stone >= 0) {
     carried = box_corners(site.stones[static_cast<std::size_t>(plan.target_stone)].bounds);
     for (Vector3d& p : carried) p = plan.T_world_gripper.inverse() * p;
+  } else {
+    const double half = 0.5 * plan.opening;
+    carried = box_corners(Eigen::AlignedBox3d(Vector3d(0.0, -half, -0.5 * gripper.jaw_height),
+                                              Vector3d(gripper.jaw_length, half, 0.5 * gripper.jaw_height)));
   }
   std::vector<Eigen::AlignedBox3d> swept;
   for (std::size_t w = 0; w + 1 < waypoints.size(); ++w) {
@@ -195,14 +203,21 @@ std::vector<bool> free_stones(const Site& site, const GraspPlan& plan, const Gri
     for (int i = 0; i <= samples; ++i) {
       const Isometry3d T = interpolate(waypoints[w], waypoints[w + 1], static_cast<double>(i) / samples, pivot);
       swept.push_back(world_box(T, gripper_points));
-      if (w >= 1 && !carried.empty()) swept.push_back(world_box(T, carried));
+      if (w >= 1 && w <= 3) swept.push_back(world_box(T, carried));
     }
   }
+  for (auto& b : swept) b.max().z() += plan.approach_distance;
+  return swept;
+}
+
+std::vector<bool> free_stones(const Site& site, const std::vector<Eigen::AlignedBox3d>& swept, int target,
+                              const PhysicsConfig& c) {
+  const int n = static_cast<int>(site.stones.size());
   std::vector<bool> free(static_cast<std::size_t>(n), false);
   for (int k = 0; k < n; ++k) {
     const auto& b = site.stones[static_cast<std::size_t>(k)].bounds;
     free[static_cast<std::size_t>(k)] =
-        k == plan.target_stone ||
+        k == target ||
         std::any_of(swept.begin(), swept.end(), [&](const Eigen::AlignedBox3d& s) { return boxes_near(s, b, c.free_margin); });
   }
   // Stones touching a free stone move with it (piles).
@@ -301,12 +316,14 @@ class Trial {
                                 const PhysicsConfig& config, const Isometry3d& pre_grasp) {
     detail::SceneSpec s;
     s.start_poses.assign(site.stones.size(), Isometry3d::Identity());
-    s.free = free_stones(site, plan, gripper, config, pre_grasp);
+    const std::vector<Eigen::AlignedBox3d> swept = swept_boxes(plan, gripper, site, pre_grasp);
+    s.free = free_stones(site, swept, plan.target_stone, config);
     s.with_gripper = true;
     s.T_world_gripper = pre_grasp;
     s.opening = plan.opening;
-    for (const Isometry3d* T : {&pre_grasp, &plan.T_world_gripper, &plan.T_world_place}) {
-      s.extra_xy.push_back(T->translation().head<2>());
+    for (const Eigen::AlignedBox3d& b : swept) {  // the ground under the whole path
+      s.extra_xy.push_back(b.min().head<2>());
+      s.extra_xy.push_back(b.max().head<2>());
     }
     return s;
   }
@@ -596,6 +613,7 @@ void validate(const PhysicsConfig& c) {
           "collision_depth >= 0; slip_threshold, slip_angle_threshold, drop_distance > 0");
   require(c.place_support_fraction > 0.0 && c.place_support_fraction <= 1.0, "place_support_fraction must lie in (0, 1]");
   require(non_negative(c.free_margin) && non_negative(c.island_gap), "free_margin and island_gap must be >= 0");
+  require(positive(c.trace_interval), "trace_interval must be > 0");
   require(positive(c.site_settle_time) && positive(c.rest_speed) && positive(c.rest_hold),
           "site_settle_time, rest_speed and rest_hold must be > 0");
 }
@@ -690,16 +708,19 @@ SettleResult settle_island(Site island, const PhysicsConfig& config, const std::
                                          config.rest_hold, region);
   apply_stone_poses(island, total.stone_poses);
   island.at_rest = true;
+  bool converged = false;  // a fresh scene held the stones still
   for (int restart = 0; restart < kMaxRestarts && total.settled; ++restart) {
     const SettleResult again = settle_until_rest(island, config, {}, config.site_settle_time, config.rest_speed,
                                                  config.rest_hold, region);
+    converged = largest_motion(island, again.stone_poses) < config.rest_speed * config.rest_hold;
     apply_stone_poses(island, again.stone_poses);
     for (std::size_t k = 0; k < total.stone_poses.size(); ++k) total.stone_poses[k] = again.stone_poses[k] * total.stone_poses[k];
     total.sim_time += again.sim_time;
     total.wall_time += again.wall_time;
     total.settled = again.settled;
-    if (largest_motion(island, again.stone_poses) < config.rest_speed * config.rest_hold) break;
+    if (converged) break;
   }
+  total.settled = total.settled && converged;
   return total;
 }
 
@@ -750,14 +771,19 @@ SiteSettleResult settle_site(Site& site, const PhysicsConfig& physics) {
     // Islands whose stones came to rest near each other join and settle again, together.
     Site moved = generated;
     apply_stone_poses(moved, r.stone_poses);
+    // Each stone's range: from where it was generated to where it came to rest (a stone that
+    // rolled through another island's place joins it).
+    std::vector<Eigen::AlignedBox3d> ranges;
+    for (int k = 0; k < n; ++k) {
+      ranges.push_back(moved.stones[static_cast<std::size_t>(k)].bounds.merged(generated.stones[static_cast<std::size_t>(k)].bounds));
+    }
     std::vector<int> island_of(static_cast<std::size_t>(n));
     for (std::size_t i = 0; i < partition.size(); ++i) {
       for (int k : partition[i]) island_of[static_cast<std::size_t>(k)] = static_cast<int>(i);
     }
     const auto joined = groups(n, [&](int a, int b) {
       return island_of[static_cast<std::size_t>(a)] == island_of[static_cast<std::size_t>(b)] ||
-             boxes_near(moved.stones[static_cast<std::size_t>(a)].bounds, moved.stones[static_cast<std::size_t>(b)].bounds,
-                        config.island_gap);
+             boxes_near(ranges[static_cast<std::size_t>(a)], ranges[static_cast<std::size_t>(b)], config.island_gap);
     });
     if (joined.size() == partition.size()) break;
     std::vector<bool> next_todo, next_settled;

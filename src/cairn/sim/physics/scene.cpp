@@ -362,7 +362,13 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
   const int file = mj_findFileVFS(vfs.get(), "site.xml");
   std::memcpy(vfs->filedata[file], xml.data(), xml.size());
   std::array<char, 1024> error{};
-  m_ = mj_loadXML("site.xml", vfs.get(), error.data(), static_cast<int>(error.size()));
+  {
+    // Scenes are built in parallel (settle_site's islands); MuJoCo 2.2.2 does not promise that
+    // its XML parser and compiler are reentrant, so one load at a time. Stepping is per scene.
+    static std::mutex loading;
+    const std::lock_guard<std::mutex> lock(loading);
+    m_ = mj_loadXML("site.xml", vfs.get(), error.data(), static_cast<int>(error.size()));
+  }
   mj_deleteVFS(vfs.get());
   if (m_ == nullptr) throw InputError(std::string("physics: MuJoCo rejected the model: ") + error.data());
   d_ = mj_makeData(m_);
