@@ -36,7 +36,7 @@ struct SimulationConfig {
   /// Settle the generated site in the physics before anything is sensed (settle_site, stones
   /// generated resting on the ground), so the sensors, the truth files and every later physics
   /// scene start from one world at rest. Off by default until every site comes to rest (issue
-  /// #15: 3 of 20 exp1 sites do not yet; docs/simulator-physics.md); `cairn grasp-trial` settles.
+  /// #15: 6 of 20 exp1 sites do not yet; docs/simulator-physics.md); `cairn grasp-trial` settles.
   bool settle_in_physics = false;
   double terrain_mesh_spacing = 0.05;  // [m] triangulation of the terrain for ray casting
   bool with_drone = true;             // fly the drone survey
