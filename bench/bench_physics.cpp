@@ -14,9 +14,11 @@ using namespace cairn::sim;
 
 const std::vector<std::string> kScenarios = {"exp1", "exp2", "pile"};
 
+/// The scenario's site as make_site generates it for settling (resting on the ground), unsettled.
 SimulationConfig unsettled(const std::string& scenario) {
   SimulationConfig cfg = scenario_config(scenario, default_real_mesh_dir());
   cfg.settle_in_physics = false;
+  cfg.site.stones.embed_depth = 0.0;
   return cfg;
 }
 
