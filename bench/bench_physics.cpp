@@ -52,7 +52,7 @@ void BM_GraspTrial(benchmark::State& state) {
   cfg.settle_in_physics = true;
   static const Site site = make_site(cfg, 1);
   const int k = static_cast<int>(state.range(0));
-  GraspPlan plan = centred_antipodal_grasp(site.stones[static_cast<std::size_t>(k)], cfg.gripper, &site.terrain);
+  cairn::GraspPlan plan = centred_antipodal_grasp(site.stones[static_cast<std::size_t>(k)], cfg.gripper, &site.terrain);
   plan.target_stone = k;
   GraspTrialResult r;
   for (auto _ : state) r = run_grasp_trial(site, plan, cfg.gripper, cfg.physics);

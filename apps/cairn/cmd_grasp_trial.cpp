@@ -82,7 +82,7 @@ int run_grasp_trial(const GraspTrialArgs& a) {
     spdlog::info("grasp-trial: site at rest={} ({} islands, {:.1f} s simulated, {:.2f} s wall)", settled.settled,
                  settled.islands, settled.sim_time, settled.wall_time);
   }
-  sim::GraspPlan plan;
+  GraspPlan plan;
   if (a.grasp_file.empty()) {
     sim::CentredGraspOptions o;
     if (a.place_offset.size() != 2) throw InputError("--place-offset needs two values: X Y");
@@ -91,7 +91,7 @@ int run_grasp_trial(const GraspTrialArgs& a) {
     plan = sim::centred_antipodal_grasp(site.stones[static_cast<std::size_t>(a.stone)], cfg.gripper, &site.terrain, o);
     plan.target_stone = a.stone;
   } else {
-    plan = sim::grasp_plan_from_json(read_json(a.grasp_file), a.grasp_file);
+    plan = grasp_plan_from_json(read_json(a.grasp_file), a.grasp_file);
     if (plan.target_stone < 0) plan.target_stone = a.stone;
   }
   spdlog::info("grasp-trial: stone {} — opening {:.2f} m, approach {:.2f} m, lift {:.2f} m", a.stone, plan.opening,
@@ -103,12 +103,12 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   j["scenario"] = a.scenario;
   j["seed"] = a.seed;
   j["stone"] = a.stone;
-  j["plan"] = sim::to_json(plan);
+  j["plan"] = to_json(plan);
   j["site_settle"] = settle_json;
   // Relative to the raw generated placement (generate_site), settling composed in.
   nlohmann::json from_generated = nlohmann::json::array();
   for (std::size_t k = 0; k < r.stone_poses.size(); ++k) {
-    from_generated.push_back(sim::pose_to_json(a.no_settle ? r.stone_poses[k] : r.stone_poses[k] * settled.stone_poses[k]));
+    from_generated.push_back(pose_to_json(a.no_settle ? r.stone_poses[k] : r.stone_poses[k] * settled.stone_poses[k]));
   }
   j["stone_poses_from_generated"] = from_generated;
   j["config"] = config::to_json(cfg);

@@ -28,12 +28,12 @@ Eigen::Isometry3d pose(double yaw, const Eigen::Vector3d& t) {
 // ---- self-filter ---------------------------------------------------------------------------------
 
 TEST(SelfFilter, RemovesShapeCentresKeepsTheScene) {
-  const RobotModel robot = sim::make_excavator_model(GripperConfig{});
+  const RobotModel robot = make_excavator_model(GripperConfig{});
   JointState q;
   q.time = 0.0;
-  q.set(sim::joints::kCabinYaw, 0.4);
-  q.set(sim::joints::kBoom, 52 * kDeg);
-  q.set(sim::joints::kStick, -132 * kDeg);
+  q.set(joints::kCabinYaw, 0.4);
+  q.set(joints::kBoom, 52 * kDeg);
+  q.set(joints::kStick, -132 * kDeg);
   const std::vector<JointState> states{q};
   const Eigen::Isometry3d T_cabin_sensor = pose(0.0, {0.95, 1.0, 2.5});
   const int cabin = robot.link_index("cabin");
@@ -340,7 +340,7 @@ TEST(SmoothSurface, QuadraticKeepsCurvedSurfacesWherePlanesFlattenThem) {
 // ---- Mapper input checks ------------------------------------------------------------------------
 
 TEST(Mapper, BadInputGivesClearErrorsOrWarnings) {
-  const RobotModel robot = sim::make_excavator_model(GripperConfig{});
+  const RobotModel robot = make_excavator_model(GripperConfig{});
   EXPECT_THROW(Mapper({.robot = robot, .T_cabin_sensor = {}}), InputError);
   MappingConfig bad;
   bad.m = 0;
@@ -358,7 +358,7 @@ TEST(Mapper, BadInputGivesClearErrorsOrWarnings) {
   mapper.add_state_estimate({1.0, pose(0.0, {NAN, 0, 0})});  // warned and skipped
   EXPECT_THROW(mapper.add_sweep("H", sweep, 0.0, 0.1), InputError);  // no joint states
   JointState q;
-  q.set(sim::joints::kBoom, 52 * kDeg);
+  q.set(joints::kBoom, 52 * kDeg);
   mapper.add_joint_state(q);
   EXPECT_THROW(mapper.add_sweep("X", sweep, 0.0, 0.1), InputError);
   PointCloud inconsistent = sweep;

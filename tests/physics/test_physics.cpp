@@ -9,7 +9,7 @@
 #include <cmath>
 
 #include "cairn/core/error.hpp"
-#include "cairn/sim/physics/grasp_json.hpp"
+#include "cairn/sim/physics/scene.hpp"
 
 namespace cairn::sim {
 namespace {
@@ -42,11 +42,13 @@ Stone box_stone(const Vector3d& lo, const Vector3d& hi) {
   return s;
 }
 
-/// Flat terrain at z = 0 with one box-like stone (0.8 x 0.5 x 0.5 m, 520 kg) resting on it.
+/// Flat terrain at z = 0 with one box-like stone (1.0 x 0.8 x 0.7 m = 0.56 m^3, 1.46 t, the
+/// paper's size range) resting on it.
+constexpr double kBoxWidth = 0.8;
 Site flat_box_site() {
   Site site;
   site.terrain.config = TerrainConfig{.slope_x = 0.0, .slope_y = 0.0, .bump_amplitude = 0.0, .roughness = 0.0};
-  site.stones.push_back(box_stone({-0.4, -0.25, 0.0}, {0.4, 0.25, 0.5}));
+  site.stones.push_back(box_stone({-0.5, -0.5 * kBoxWidth, 0.0}, {0.5, 0.5 * kBoxWidth, 0.7}));
   return site;
 }
 
@@ -74,7 +76,7 @@ TEST(GraspTrial, CentredAntipodalGraspOnBoxSucceedsAndPlaces) {
   EXPECT_TRUE(r.success) << r.message;
   EXPECT_TRUE(r.failure_reasons.empty());
   EXPECT_EQ(r.grasped_stone, 0);
-  EXPECT_NEAR(r.grasp_opening, 0.5, 0.03);
+  EXPECT_NEAR(r.grasp_opening, kBoxWidth, 0.03);
   EXPECT_LT(r.slip_distance, 0.05);
   EXPECT_TRUE(r.settled);
   ASSERT_EQ(r.stone_poses.size(), 1u);
@@ -103,7 +105,10 @@ std::vector<TraceSample> trace_in(const GraspTrialResult& r, const std::string& 
 
 TEST(GraspTrial, TraceCarriesTheStoneWeightAndASteadyJaw) {
   // What the machine measures (Sec. 6.3): while the stone hangs in the grip the arm carries its
-  // weight (520 kg), and the jaw opening stays at the stone's width.
+  // weight (1.46 t), and the jaw opening stays at the stone's width. The box is exactly as wide
+  // as the pivots are apart, so its contact flips between the jaw tips and its top edges as the
+  // jaws pass parallel: the jaws chatter by ~2 mm and the load spikes for single samples, so the
+  // load is read as the median of the hold (a load cell's filtered value).
   const Site site = flat_box_site();
   const GripperConfig gripper;
   GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
@@ -115,27 +120,31 @@ TEST(GraspTrial, TraceCarriesTheStoneWeightAndASteadyJaw) {
   for (std::size_t i = 1; i < r.trace.size(); ++i) EXPECT_GT(r.trace[i].time, r.trace[i - 1].time);
   const double weight = c.rock_density * site.stones[0].volume * 9.81;
   const std::vector<TraceSample> hold = trace_in(r, "hold");
-  ASSERT_FALSE(hold.empty());
+  ASSERT_GE(hold.size(), 10u);
+  std::vector<double> load;
   for (const TraceSample& t : hold) {
-    EXPECT_NEAR(t.arm_load, weight, 0.1 * weight) << "t = " << t.time;
-    EXPECT_NEAR(t.opening, 0.5, 0.03) << "t = " << t.time;
+    load.push_back(t.arm_load);
+    EXPECT_NEAR(t.opening, kBoxWidth, 0.03) << "t = " << t.time;
+    EXPECT_NEAR(t.opening, opening_at(gripper, t.jaw_angle), 1e-9);
   }
+  std::nth_element(load.begin(), load.begin() + static_cast<std::ptrdiff_t>(load.size() / 2), load.end());
+  EXPECT_NEAR(load[load.size() / 2], weight, 0.1 * weight);
   // Before the grasp, held still, the arm carries nothing but the gripper (while it moves, the
   // trace also holds the gripper's own inertia: ~1.7 t at the min-jerk accelerations).
   for (const TraceSample& t : trace_in(r, "settle_in")) EXPECT_NEAR(t.arm_load, 0.0, 0.02 * weight);
 }
 
 TEST(GraspTrial, LowFrictionSlipShowsInTheJawTrace) {
-  // A wedge-shaped stone (0.8 m long, 0.7 m wide at the bottom, 0.6 m at the top, 0.6 m high):
-  // at friction 0.1 it slides down out of the jaws while lifting, and because it narrows upwards
-  // the wire encoder's trace shows the jaws closing further; the result says "slipped". (Between
-  // parallel jaws a box or a ball slides out without the jaws moving: that is a "dropped".)
+  // A wedge-shaped stone (1.2 m long, 1.0 m wide at the bottom, 0.85 m at the top, 0.7 m high,
+  // 0.77 m^3): at friction 0.1 it slides down out of the jaws while lifting, and because it
+  // narrows upwards the wire encoder's trace shows the jaws closing further; the result says
+  // "slipped".
   Site site = flat_box_site();
   Stone wedge;
   for (int i = 0; i < 8; ++i) {
-    const float half_width = (i & 4) ? 0.3f : 0.35f;
-    wedge.mesh.vertices.points.emplace_back((i & 1) ? 0.4f : -0.4f, (i & 2) ? half_width : -half_width,
-                                            (i & 4) ? 0.6f : 0.0f);
+    const float half_width = (i & 4) ? 0.425f : 0.5f;
+    wedge.mesh.vertices.points.emplace_back((i & 1) ? 0.6f : -0.6f, (i & 2) ? half_width : -half_width,
+                                            (i & 4) ? 0.7f : 0.0f);
   }
   wedge.mesh.triangles = box_mesh(Vector3d::Zero(), Vector3d::Ones()).triangles;
   wedge.volume = mesh_volume(wedge.mesh);
@@ -153,7 +162,8 @@ TEST(GraspTrial, LowFrictionSlipShowsInTheJawTrace) {
   const std::vector<TraceSample> lift = trace_in(r, "lift");
   ASSERT_GE(lift.size(), 2u);
   EXPECT_GT(r.jaw_travel, c.jaw_slip_threshold);
-  // The trace (every 20 ms) shows it up to its last sample before the detector fired.
+  // The trace (every 20 ms, and at the moment the detector fired) shows the jaws closing; its
+  // first lift sample comes up to 20 ms into the lift, when the slip has begun.
   EXPECT_GT(lift.front().opening - lift.back().opening, 0.75 * c.jaw_slip_threshold);
   // At the default friction the jaws hold it while lifting: the trace stays flat.
   const GraspTrialResult held = run_grasp_trial(site, plan, gripper, fast_config());
@@ -193,7 +203,7 @@ TEST(GraspTrial, SwingAboutAPivotSucceeds) {
   plan.swing_pivot = Eigen::Vector2d(-2.0, 0.0);
   const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
   EXPECT_TRUE(r.success) << r.message;
-  EXPECT_NEAR((r.stone_poses[0] * site.stones[0].centroid - Vector3d(-2.0, 2.0, 0.25)).head<2>().norm(), 0.0, 0.1);
+  EXPECT_NEAR((r.stone_poses[0] * site.stones[0].centroid - Vector3d(-2.0, 2.0, 0.35)).head<2>().norm(), 0.0, 0.1);
 }
 
 TEST(GraspTrial, GraspOnAirFailsAsEmpty) {
@@ -228,13 +238,40 @@ TEST(GraspTrial, JawHittingTheTerrainOnApproachIsACollision) {
 
 TEST(GraspTrial, PalmHittingTheStoneOnApproachIsACollision) {
   Site site = flat_box_site();
-  site.stones[0] = box_stone({-0.3, -0.25, 0.0}, {0.3, 0.25, 1.0});  // tall: the jaws stay clear
+  site.stones[0] = box_stone({-0.3, -0.25, 0.0}, {0.3, 0.25, 1.4});  // tall: the jaws stay clear
   const GripperConfig gripper;
   GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
-  plan.T_world_gripper.translation().z() = 0.95;  // palm 5 cm into the box top
+  plan.T_world_gripper.translation().z() = 1.35;  // palm 5 cm into the box top
   const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
   EXPECT_TRUE(has_reason(r, reason::kCollisionApproach)) << r.message;
   EXPECT_NE(r.message.find("palm hit stone 0"), std::string::npos) << r.message;
+}
+
+TEST(GraspTrial, PhysicsJawsAreTheGripperParts) {
+  // One definition: MuJoCo's palm and jaw pads, at the scene's start, tile exactly the parts of
+  // robot/gripper.hpp at the plan's opening (every pad corner inside its part, volumes equal).
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  detail::SceneSpec spec;
+  spec.start_poses.assign(1, Isometry3d::Identity());
+  spec.with_gripper = true;
+  spec.T_world_gripper.linear() = Eigen::AngleAxisd(2.0, Vector3d(0.3, -1.0, 0.2).normalized()).toRotationMatrix();
+  spec.T_world_gripper.translation() = Vector3d(0.5, -1.0, 3.0);
+  spec.opening = 1.3;
+  const detail::Scene scene(site, spec, gripper, fast_config());
+  const std::vector<ConvexPart> parts = gripper_parts(gripper, spec.opening);
+  std::array<double, 3> volume{};
+  for (const detail::Scene::GeomBox& b : scene.gripper_boxes()) {
+    const std::size_t part = b.entity == detail::kPalm ? 0 : (b.entity == detail::kJawLeft ? 1 : 2);
+    volume[part] += 8.0 * b.half.prod();
+    for (int i = 0; i < 8; ++i) {
+      const Vector3d sign((i & 1) ? 1.0 : -1.0, (i & 2) ? 1.0 : -1.0, (i & 4) ? 1.0 : -1.0);
+      const Vector3d corner_G = spec.T_world_gripper.inverse() * (b.pose * sign.cwiseProduct(b.half));
+      EXPECT_TRUE(parts[part].contains(corner_G, 1e-6)) << parts[part].name << " corner " << corner_G.transpose();
+    }
+  }
+  for (std::size_t p = 0; p < 3; ++p) EXPECT_NEAR(volume[p], 8.0 * parts[p].half_extents.prod(), 1e-9) << parts[p].name;
+  EXPECT_NEAR(scene.opening(), spec.opening, 1e-9);
 }
 
 TEST(GraspTrial, IsDeterministic) {
@@ -256,7 +293,7 @@ TEST(GraspTrial, RejectsInvalidInput) {
   const GripperConfig gripper;
   GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain);
   GraspPlan wide = plan;
-  wide.opening = gripper.max_opening + 0.1;
+  wide.opening = max_opening(gripper) + 0.1;
   EXPECT_THROW(run_grasp_trial(site, wide, gripper, fast_config()), InputError);
   GraspPlan skew = plan;
   skew.T_world_gripper.linear()(0, 0) += 0.1;
@@ -319,23 +356,6 @@ TEST(Settle, ApplyStonePosesMovesMeshCentroidAndBounds) {
   EXPECT_NEAR(mesh_centroid(site.stones[0].mesh).x(), (T * c0).x(), 1e-5);
   EXPECT_TRUE(site.stones[0].bounds.contains(T * c0));
   EXPECT_THROW(apply_stone_poses(site, {}), InputError);
-}
-
-TEST(GraspJson, PlanRoundTrips) {
-  const Site site = flat_box_site();
-  GraspPlan plan = centred_antipodal_grasp(site.stones[0], GripperConfig{}, &site.terrain);
-  plan.swing_pivot = Eigen::Vector2d(1.0, -2.0);
-  plan.target_stone = 0;
-  const GraspPlan back = grasp_plan_from_json(to_json(plan), "test");
-  EXPECT_TRUE(back.T_world_gripper.isApprox(plan.T_world_gripper, 1e-8));
-  EXPECT_TRUE(back.T_world_place.isApprox(plan.T_world_place, 1e-8));
-  EXPECT_DOUBLE_EQ(back.opening, plan.opening);
-  ASSERT_TRUE(back.swing_pivot.has_value());
-  EXPECT_EQ(back.target_stone, 0);
-  const nlohmann::json quat = {{"T_world_gripper", {{"position", {1, 2, 3}}, {"quaternion_wxyz", {0, 1, 0, 0}}}}};
-  EXPECT_TRUE(grasp_plan_from_json(quat, "q").T_world_gripper.translation().isApprox(Vector3d(1, 2, 3)));
-  EXPECT_THROW(grasp_plan_from_json(nlohmann::json{{"opening", 1.0}}, "x"), InputError);
-  EXPECT_THROW(grasp_plan_from_json(nlohmann::json{{"T_world_gripper", 1}, {"bogus", 2}}, "x"), InputError);
 }
 
 }  // namespace

@@ -269,30 +269,6 @@ TEST(GlobalRegistration, LevellingTurnsTheGroundOntoTheMapsGround) {
   }
 }
 
-// Without the centroid-pair hypotheses (candidates only from the consistency groups of ISS + SHOT
-// matches, as in the paper) the same site registers, from a consistency group.
-TEST(GlobalRegistration, ConsistencyGroupsAloneRegisterTheSite) {
-  const Fixture& f = fixture();
-  const ScaleRecoveryResult s = recover_scale(f.sfm_model, f.vins);
-  const Similarity truth = f.T_map_sfm * s.T_metric_sfm.inverse();
-  PointCloud source = f.drone_sfm;
-  transform_cloud(source, s.T_metric_sfm);
-  GlobalRegistrationConfig cfg;
-  cfg.centroid_hypotheses = false;
-  const GlobalRegistrationResult r = register_global(source, f.map, {}, cfg);
-  ASSERT_TRUE(r.success) << describe(r);
-  EXPECT_EQ(r.centroid_candidates, 0u);
-  const auto accepted =
-      std::find_if(r.reports.begin(), r.reports.end(), [](const CandidateReport& c) { return c.accepted; });
-  ASSERT_NE(accepted, r.reports.end());
-  EXPECT_EQ(accepted->origin, "descriptors");
-  const RegistrationError e = errors(r.T_target_source, truth, kSiteCentre);
-  EXPECT_LT(e.rotation_deg, kMaxRotationErrorDeg);
-  EXPECT_LT(e.translation_m, kMaxTranslationError);
-  std::printf("[registration, groups only] %.3f deg, %.1f mm; accepted a group of %zu votes (%zu groups); %.0f ms\n",
-              e.rotation_deg, 1000 * e.translation_m, accepted->votes, r.candidates, r.timings.total());
-}
-
 // The whole chain on more sites (seed 1 above): each seed is its own simulated exp1 layout (stones, terrain,
 // drone survey), 8 s of scanning, scale recovery, and a drone cloud in an arbitrary 3-D frame.
 // Success must be right against the truth, and against the map as built (the map's own offset at
@@ -322,6 +298,17 @@ TEST_P(GlobalRegistrationSeeds, ArbitraryFrameRegistersWithEveryStoneOneObject) 
   PointCloud source = io::load_cloud(run / "drone" / "cloud.ply");
   transform_cloud(source, T_source_metric * s.T_metric_sfm);
   const Similarity truth = T_map_sfm * (T_source_metric * s.T_metric_sfm).inverse();
+
+  // The paper's candidates alone (consistency groups of ISS + SHOT matches, no centroid pairs),
+  // measured for comparison, not asserted: they register 5 of seeds 1-8, seed 5 at 1.5 deg
+  // (docs/registration.md). A seed-1 test asserting they register failed as soon as the arm's
+  // geometry changed the map (issue #15's angular gripper): it had been a single-seed result.
+  GlobalRegistrationConfig groups_only;
+  groups_only.centroid_hypotheses = false;
+  const GlobalRegistrationResult g = register_global(source, map, {}, groups_only);
+  const RegistrationError eg = errors(g.T_target_source, truth, kSiteCentre);
+  std::printf("[registration seed %llu, groups only] %s %.3f deg %.1f mm\n", static_cast<unsigned long long>(seed),
+              g.success ? "registered" : "failed", eg.rotation_deg, 1000 * eg.translation_m);
 
   const GlobalRegistrationResult r = register_global(source, map, {}, {});
   ASSERT_TRUE(r.success) << "seed " << seed << ": " << describe(r);

@@ -8,84 +8,12 @@ namespace cairn::sim {
 namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-// Machine dimensions [m] (M545-like).
-constexpr double kChassisLength = 3.6, kChassisWidth = 2.0, kChassisHeight = 0.8;
-constexpr double kLegSize = 0.35;                  // leg cross-section
-constexpr double kLegX = 1.9, kLegY = 1.4;         // leg positions from the axis
-constexpr double kCabinBack = -1.7, kCabinFront = 0.9, kCabinWidth = 2.2, kCabinHeight = 2.2;
-constexpr double kCounterweightLength = 0.8, kCounterweightHeight = 1.2;
-constexpr double kBoomPivotX = 1.0, kBoomPivotZ = 0.8;
-constexpr double kBoomLength = 4.5, kBoomWidth = 0.5, kBoomHeight = 0.6;
-constexpr double kStickLength = 2.8, kStickWidth = 0.4, kStickHeight = 0.45;
-constexpr double kRotatorLength = 0.3, kRotatorRadius = 0.2;
-
 Eigen::Isometry3d translation(double x, double y, double z) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(x, y, z);
   return T;
 }
-
-Shape box(std::string name, const Eigen::Vector3d& centre, const Eigen::Vector3d& size) {
-  return Shape{.kind = Shape::Kind::Box, .name = std::move(name),
-               .T_link_shape = translation(centre.x(), centre.y(), centre.z()), .size = size};
-}
 }  // namespace
-
-RobotModel make_excavator_model(const GripperConfig& g) {
-  RobotModel m;
-  m.name = "walking_excavator";
-  const Eigen::Vector3d minus_y(0, -1, 0);
-  // Base: chassis below the swing axis, four legs down to the ground.
-  Link base{.name = "base"};
-  base.shapes.push_back(box("chassis", {0, 0, -0.5 * kChassisHeight}, {kChassisLength, kChassisWidth, kChassisHeight}));
-  int leg = 0;
-  for (double sx : {-1.0, 1.0}) {
-    for (double sy : {-1.0, 1.0}) {
-      base.shapes.push_back(box("leg_" + std::to_string(leg++), {sx * kLegX, sy * kLegY, -0.5 * 1.3},
-                                {kLegSize, kLegSize, 1.3}));
-    }
-  }
-  m.links.push_back(std::move(base));
-  Link cabin{.name = "cabin", .parent = 0, .joint = Link::Joint::Revolute, .joint_name = joints::kCabinYaw,
-             .axis = Eigen::Vector3d::UnitZ()};
-  cabin.shapes.push_back(box("cab", {0.5 * (kCabinBack + kCabinFront), 0, 0.5 * kCabinHeight},
-                             {kCabinFront - kCabinBack, kCabinWidth, kCabinHeight}));
-  cabin.shapes.push_back(box("counterweight", {kCabinBack - 0.5 * kCounterweightLength, 0, 0.5 * kCounterweightHeight},
-                             {kCounterweightLength, kCabinWidth, kCounterweightHeight}));
-  m.links.push_back(std::move(cabin));
-  Link boom{.name = "boom", .parent = 1, .joint = Link::Joint::Revolute, .joint_name = joints::kBoom,
-            .T_parent_joint = translation(kBoomPivotX, 0, kBoomPivotZ), .axis = minus_y};
-  boom.shapes.push_back(box("boom", {0.5 * kBoomLength, 0, 0}, {kBoomLength, kBoomWidth, kBoomHeight}));
-  m.links.push_back(std::move(boom));
-  Link stick{.name = "stick", .parent = 2, .joint = Link::Joint::Revolute, .joint_name = joints::kStick,
-             .T_parent_joint = translation(kBoomLength, 0, 0), .axis = minus_y};
-  stick.shapes.push_back(box("stick", {0.5 * kStickLength, 0, 0}, {kStickLength, kStickWidth, kStickHeight}));
-  m.links.push_back(std::move(stick));
-  Link tilt{.name = "rotator", .parent = 3, .joint = Link::Joint::Revolute, .joint_name = joints::kGripperPitch,
-            .T_parent_joint = translation(kStickLength, 0, 0), .axis = minus_y};
-  Shape rotator{.kind = Shape::Kind::Cylinder, .name = "rotator", .T_link_shape = translation(0.5 * kRotatorLength, 0, 0),
-                .size = {2 * kRotatorRadius, 2 * kRotatorRadius, kRotatorLength}};
-  rotator.T_link_shape.linear() = Eigen::AngleAxisd(0.5 * std::numbers::pi, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  tilt.shapes.push_back(rotator);
-  m.links.push_back(std::move(tilt));
-  // Gripper frame G: origin at the palm's front face, x = approach.
-  Link gripper{.name = "gripper", .parent = 4, .joint = Link::Joint::Revolute, .joint_name = joints::kGripperRoll,
-               .T_parent_joint = translation(kRotatorLength + g.palm_depth, 0, 0), .axis = Eigen::Vector3d::UnitX()};
-  const auto parts = gripper_parts(g, 0.0);
-  gripper.shapes.push_back(box("palm", parts[0].center, 2.0 * parts[0].half_extents));
-  m.links.push_back(std::move(gripper));
-  const Eigen::Vector3d jaw_size(g.jaw_length, g.jaw_thickness, g.jaw_height);
-  Link left{.name = "jaw_left", .parent = 5, .joint = Link::Joint::Prismatic, .joint_name = joints::kJawLeft,
-            .axis = minus_y};
-  left.shapes.push_back(box("jaw_left", {0.5 * g.jaw_length, -0.5 * g.jaw_thickness, 0}, jaw_size));
-  m.links.push_back(std::move(left));
-  Link right{.name = "jaw_right", .parent = 5, .joint = Link::Joint::Prismatic, .joint_name = joints::kJawRight,
-             .axis = Eigen::Vector3d::UnitY()};
-  right.shapes.push_back(box("jaw_right", {0.5 * g.jaw_length, 0.5 * g.jaw_thickness, 0}, jaw_size));
-  m.links.push_back(std::move(right));
-  m.validate();
-  return m;
-}
 
 Excavator::Excavator(const ExcavatorConfig& config, const GripperConfig& gripper, const Terrain& terrain)
     : config_(config), gripper_(gripper), model_(make_excavator_model(gripper)) {
@@ -103,8 +31,7 @@ JointState Excavator::joints_at(double t) const {
   q.set(joints::kStick, c.stick_deg * kDeg);
   q.set(joints::kGripperPitch, c.gripper_pitch_deg * kDeg);
   q.set(joints::kGripperRoll, c.gripper_roll_deg * kDeg);
-  q.set(joints::kJawLeft, 0.5 * c.gripper_opening);
-  q.set(joints::kJawRight, 0.5 * c.gripper_opening);
+  set_jaw_opening(q, gripper_, c.gripper_opening);
   return q;
 }
 

@@ -5,12 +5,11 @@
 // cabin roof, one horizontal and one vertical (paper Fig. 2).
 //
 // Frames: world W (= map M, gravity-aligned, z up), base B (on the swing axis, top of the
-// chassis), cabin C (B rotated by the cabin yaw), sensors H and V, gripper G (core/gripper.hpp).
+// chassis), cabin C (B rotated by the cabin yaw), sensors H and V, gripper G (robot/gripper.hpp). The machine's geometry: robot/excavator_model.hpp.
 #include <Eigen/Geometry>
 #include <string>
 
-#include "cairn/core/gripper.hpp"
-#include "cairn/core/robot_model.hpp"
+#include "cairn/robot/excavator_model.hpp"
 #include "cairn/sim/procedural_site.hpp"
 
 namespace cairn::sim {
@@ -57,13 +56,6 @@ struct ExcavatorConfig {
   }
 };
 
-/// Joint names of the excavator model.
-namespace joints {
-inline const std::string kCabinYaw = "cabin_yaw", kBoom = "boom", kStick = "stick",
-                         kGripperPitch = "gripper_pitch", kGripperRoll = "gripper_roll",
-                         kJawLeft = "jaw_left", kJawRight = "jaw_right";
-}
-
 class Excavator {
  public:
   /// Places the machine on the terrain (base levelled, base_height above the ground at the axis).
@@ -94,11 +86,5 @@ class Excavator {
   RobotModel model_;
   Eigen::Isometry3d T_world_base0_ = Eigen::Isometry3d::Identity();
 };
-
-/// The excavator's kinematic tree and collision shapes (base with chassis and legs, cabin with
-/// counterweight, boom, stick, rotator, gripper palm and jaws). Joint axes: cabin_yaw about base z;
-/// boom, stick and gripper_pitch about -y (positive raises); gripper_roll about the approach x;
-/// jaw_left / jaw_right prismatic along -y / +y (value = half the opening).
-RobotModel make_excavator_model(const GripperConfig& gripper);
 
 }  // namespace cairn::sim

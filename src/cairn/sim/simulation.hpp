@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "cairn/core/gripper.hpp"
+#include "cairn/robot/gripper.hpp"
 #include "cairn/sim/drone.hpp"
 #include "cairn/sim/excavator.hpp"
 #include "cairn/sim/lidar.hpp"

@@ -10,6 +10,7 @@
 #include <tbb/parallel_for.h>
 
 #include "cairn/core/error.hpp"
+#include "cairn/robot/grasp_plan.hpp"
 #include "cairn/sim/physics/scene.hpp"
 
 namespace cairn::sim {
@@ -26,20 +27,11 @@ constexpr double kGravity = 9.81;           // [m/s^2], as in the generated mode
 constexpr double kCloseMinTime = 0.1;       // [s] closing runs at least this long
 constexpr double kJawStopHold = 0.05;       // [s] jaws must stay stopped this long
 constexpr double kEmptyOpening = 0.02;      // [m] jaws this close together hold nothing
-constexpr double kRigidTolerance = 1e-6;    // |R^T R - I| of a valid rotation
 constexpr double kExtentAngleStep = 0.5;    // [deg] search step of the shortest extent
 constexpr int kJawFootprintSamples = 9;     // per axis, terrain samples under the jaws' sweep
 
 void require(bool ok, const std::string& message) {
   if (!ok) throw ConfigError("PhysicsConfig: " + message);
-}
-
-void require_pose(const Isometry3d& T, const std::string& name) {
-  if (!T.matrix().allFinite()) throw InputError("grasp plan: " + name + " is not finite");
-  const Matrix3d R = T.linear();
-  if ((R.transpose() * R - Matrix3d::Identity()).norm() > kRigidTolerance || R.determinant() < 0) {
-    throw InputError("grasp plan: " + name + " is not a rigid transform (rotation not orthonormal)");
-  }
 }
 
 /// Minimum-jerk time scaling of a segment, s(0) = 0, s(1) = 1, zero velocity and acceleration
@@ -345,7 +337,14 @@ class Trial {
     scene_.step();
     if (scene_.time() + 0.5 * c_.timestep < next_trace_) return;
     next_trace_ += c_.trace_interval;
-    r_.trace.push_back({.time = scene_.time(), .opening = scene_.opening(), .arm_load = scene_.arm_load()});
+    record_trace();
+  }
+
+  /// The machine's signals now (also at the moment a detector fires, between the samples).
+  void record_trace() {
+    if (!r_.trace.empty() && r_.trace.back().time >= scene_.time()) return;
+    r_.trace.push_back({.time = scene_.time(), .jaw_angle = scene_.jaw_angle(), .opening = scene_.opening(),
+                        .arm_load = scene_.arm_load()});
   }
 
   bool wait_for_rest(double max_time) {
@@ -393,6 +392,7 @@ class Trial {
     if (std::find(r_.failure_reasons.begin(), r_.failure_reasons.end(), code) != r_.failure_reasons.end()) return;
     r_.failure_reasons.emplace_back(code);
     add_note(message);
+    record_trace();
   }
 
   void add_note(const std::string& message) { r_.message += (r_.message.empty() ? "" : "; ") + message; }
@@ -621,19 +621,8 @@ void validate(const PhysicsConfig& c) {
 GraspTrialResult run_grasp_trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
                                  const PhysicsConfig& config) {
   validate(config);
-  if (!(gripper.closing_force > 0.0) || !(gripper.max_opening > 0.0)) {
-    throw ConfigError("GripperConfig: closing_force and max_opening must be > 0");
-  }
-  require_pose(plan.T_world_gripper, "T_world_gripper");
-  require_pose(plan.T_world_place, "T_world_place");
-  if (!(plan.opening > 0.0 && plan.opening <= gripper.max_opening + 1e-9)) {
-    throw InputError("grasp plan: opening must lie in (0, max_opening = " + std::to_string(gripper.max_opening) + "]");
-  }
-  if (!(std::isfinite(plan.approach_distance) && plan.approach_distance >= 0.0 && std::isfinite(plan.lift_height) &&
-        plan.lift_height >= 0.0)) {
-    throw InputError("grasp plan: approach_distance and lift_height must be finite and >= 0");
-  }
-  if (plan.swing_pivot && !plan.swing_pivot->allFinite()) throw InputError("grasp plan: swing_pivot is not finite");
+  validate(gripper);
+  validate(plan, gripper);
   if (plan.target_stone >= static_cast<int>(site.stones.size())) {
     throw InputError("grasp plan: target_stone " + std::to_string(plan.target_stone) + " but the site has " +
                      std::to_string(site.stones.size()) + " stones");
@@ -653,7 +642,7 @@ SettleResult settle_until_rest(const Site& site, const PhysicsConfig& config, st
   spec.extra_xy = std::move(extra_xy);
   spec.start_poses.assign(site.stones.size(), Isometry3d::Identity());
   for (std::size_t k = 0; k < start_poses.size(); ++k) {
-    require_pose(start_poses[k], "start pose of stone " + std::to_string(k));
+    require_rigid_pose(start_poses[k], "settle: start pose of stone " + std::to_string(k));
     spec.start_poses[k] = start_poses[k];
   }
   Scene scene(site, spec, GripperConfig{}, config);
@@ -865,18 +854,54 @@ std::pair<double, Vector2d> shortest_horizontal_extent(const Stone& stone) {
   return {best, best_dir};
 }
 
+namespace {
+
+/// Highest terrain under the jaws' sweep across the closing line (half length half_u about c,
+/// the jaws' height wide), else the stone's lowest point.
+double ground_under_jaws(const Stone& stone, const Vector2d& dir, double half_u, const GripperConfig& gripper,
+                         const Terrain* terrain) {
+  if (terrain == nullptr) return stone.bounds.min().z();
+  const Vector2d c = stone.centroid.head<2>();
+  const Vector2d side(-dir.y(), dir.x());
+  const double half_v = 0.5 * gripper.jaw_height;
+  double ground = -INFINITY;
+  for (int i = 0; i < kJawFootprintSamples; ++i) {
+    for (int j = 0; j < kJawFootprintSamples; ++j) {
+      const double u = -half_u + 2.0 * half_u * i / (kJawFootprintSamples - 1);
+      const double w = -half_v + 2.0 * half_v * j / (kJawFootprintSamples - 1);
+      const Vector2d p = c + u * dir + w * side;
+      ground = std::max(ground, terrain->height(p.x(), p.y()));
+    }
+  }
+  return std::isfinite(ground) ? ground : terrain->height(c.x(), c.y());
+}
+
+/// Smallest jaw angle whose open jaws clear every vertex of the stone by `margin` (the inner
+/// face at depth x below the palm lies hinge_spacing/2 + x tan(angle) off the closing plane's
+/// centre line), for the palm at height palm_z; clamped to the gripper's range.
+double clearing_jaw_angle(const Stone& stone, const Vector2d& dir, double palm_z, double margin,
+                          const GripperConfig& gripper) {
+  const Vector2d c = stone.centroid.head<2>();
+  double angle = min_jaw_angle(gripper);
+  for (std::size_t i = 0; i < stone.mesh.vertices.size(); ++i) {
+    const Vector3d v = stone.mesh.vertices.world(i);
+    const double depth = palm_z - v.z(), off = std::abs(dir.dot(v.head<2>() - c)) + margin;
+    if (depth > 0.0) angle = std::max(angle, std::atan2(off - 0.5 * gripper.hinge_spacing, depth));
+  }
+  return std::clamp(angle, min_jaw_angle(gripper), max_jaw_angle(gripper));
+}
+
+}  // namespace
+
 GraspPlan centred_antipodal_grasp(const Stone& stone, const GripperConfig& gripper, const Terrain* terrain,
                                   const CentredGraspOptions& o) {
-  const auto [width, dir] = shortest_horizontal_extent(stone);
-  (void)width;
+  const Vector2d dir = shortest_horizontal_extent(stone).second;
   const Vector2d c = stone.centroid.head<2>();
-  // Opening: the jaws must clear the stone on both sides of the centroid.
-  double reach = 0.0;
+  double reach = 0.0;  // the stone's half width across the closing line
   for (std::size_t i = 0; i < stone.mesh.vertices.size(); ++i) {
     reach = std::max(reach, std::abs(dir.dot(stone.mesh.vertices.world(i).head<2>() - c)));
   }
   GraspPlan plan;
-  plan.opening = std::min(gripper.max_opening, 2.0 * (reach + o.opening_margin));
   plan.approach_distance = o.approach_distance;
   plan.lift_height = o.lift_height;
   // Frame: x down (approach), y along the shortest extent (closing), z = x × y.
@@ -884,24 +909,17 @@ GraspPlan centred_antipodal_grasp(const Stone& stone, const GripperConfig& gripp
   R.col(0) = -Vector3d::UnitZ();
   R.col(1) = Vector3d(dir.x(), dir.y(), 0.0);
   R.col(2) = R.col(0).cross(R.col(1));
-  // Lowest safe jaw-tip height: highest terrain under the jaws' sweep (open → centre), else the
-  // stone's lowest point.
-  double ground = stone.bounds.min().z();
-  if (terrain != nullptr) {
-    ground = -INFINITY;
-    const Vector2d side(-dir.y(), dir.x());
-    const double half_u = 0.5 * plan.opening + gripper.jaw_thickness, half_v = 0.5 * gripper.jaw_height;
-    for (int i = 0; i < kJawFootprintSamples; ++i) {
-      for (int j = 0; j < kJawFootprintSamples; ++j) {
-        const double u = -half_u + 2.0 * half_u * i / (kJawFootprintSamples - 1);
-        const double w = -half_v + 2.0 * half_v * j / (kJawFootprintSamples - 1);
-        const Vector2d p = c + u * dir + w * side;
-        ground = std::max(ground, terrain->height(p.x(), p.y()));
-      }
-    }
-    if (!std::isfinite(ground)) ground = terrain->height(c.x(), c.y());
-  }
-  const double palm_z = std::max(stone.bounds.max().z() + o.palm_clearance, ground + o.tip_clearance + gripper.jaw_length);
+  // Palm just above the stone, raised until the jaw tips clear the ground under them. Closing
+  // from an open angle, the tips swing down to their deepest (jaw_length, jaws parallel): they
+  // must clear the ground there. The jaws open just enough to clear the stone (capped); a
+  // wider opening widens their footprint, so the ground is checked once more.
+  const double top = stone.bounds.max().z() + o.palm_clearance;
+  double half_u = reach + o.opening_margin + gripper.jaw_thickness;
+  double palm_z = std::max(top, ground_under_jaws(stone, dir, half_u, gripper, terrain) + o.tip_clearance + gripper.jaw_length);
+  plan.opening = opening_at(gripper, clearing_jaw_angle(stone, dir, palm_z, o.opening_margin, gripper));
+  half_u = std::max(half_u, 0.5 * plan.opening + gripper.jaw_thickness);
+  palm_z = std::max(palm_z, ground_under_jaws(stone, dir, half_u, gripper, terrain) + o.tip_clearance + gripper.jaw_length);
+  plan.opening = opening_at(gripper, clearing_jaw_angle(stone, dir, palm_z, o.opening_margin, gripper));
   plan.T_world_gripper.linear() = R;
   plan.T_world_gripper.translation() = Vector3d(c.x(), c.y(), palm_z);
   // Place: shifted, rotated about the vertical, following the terrain.

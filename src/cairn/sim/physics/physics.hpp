@@ -2,7 +2,8 @@
 // Physics grasp trials (issue #4, item 6): the procedural site in MuJoCo 2.2.2 — stones as rigid
 // bodies (MuJoCo collides the convex hulls of their meshes; mass and inertia come from the closed
 // meshes at rock density), the terrain as a height field sampled from Terrain::height around the
-// stones, and the two-jaw gripper of core/gripper.hpp — and the execution of one grasp:
+// stones, and the two-jaw angular gripper of robot/gripper.hpp (palm, two jaws on coupled pivots,
+// one hydraulic DoF) — and the execution of one grasp (a GraspPlan, robot/grasp_plan.hpp):
 // approach, close with the hydraulic force, lift, swing/rotate, place, release, settle.
 //
 // Success is the paper's (Sec. 6.3): "A grasp is deemed successful if it is collision-free, force
@@ -21,7 +22,8 @@
 #include <string>
 #include <vector>
 
-#include "cairn/core/gripper.hpp"
+#include "cairn/robot/grasp_plan.hpp"
+#include "cairn/robot/gripper.hpp"
 #include "cairn/sim/procedural_site.hpp"
 
 namespace cairn::sim {
@@ -72,7 +74,7 @@ struct PhysicsConfig {
   // Gripper dynamics (geometry and closing force come from GripperConfig).
   double palm_mass = 1200.0;      // [kg]
   double jaw_mass = 250.0;        // [kg] each
-  double jaw_speed = 0.3;         // [m/s] free closing speed of a jaw (sets the joint damping)
+  double jaw_speed = 0.4;         // [m/s] free closing speed of a jaw tip (sets the joint damping)
   /// Each jaw is split into pads x pads boxes (same outer shape), so a flat contact gives several
   /// contact points (MuJoCo 2.2.2 reports one point per convex pair) and resists rotation.
   int jaw_pads = 2;
@@ -85,7 +87,7 @@ struct PhysicsConfig {
   double min_segment_time = 0.3;  // [s] shortest trajectory segment
   // Phases.
   double initial_settle_time = 0.3;  // [s] stones settle onto the height field before the trial
-  double close_time = 2.0;   // [s] longest closing phase (ends earlier when the jaws stop)
+  double close_time = 3.0;   // [s] longest closing phase (ends earlier when the jaws stop)
   double hold_time = 0.5;    // [s] hold still after lifting and after moving (slip shows here)
   double release_time = 1.0;  // [s] opening the jaws at the place pose
   double settle_time = 3.0;   // [s] longest settling phase at the end
@@ -186,22 +188,6 @@ void validate(const PhysicsConfig& config);
 // ---------------------------------------------------------------------------------------------
 // Grasp trials
 
-/// One grasp to execute. Poses are gripper frames in the convention of core/gripper.hpp
-/// (x = approach, y = closing, origin at the palm's front face).
-struct GraspPlan {
-  Eigen::Isometry3d T_world_gripper = Eigen::Isometry3d::Identity();  // at closing
-  double opening = 1.0;            // [m] pre-grasp distance between the jaws' inner faces
-  double approach_distance = 0.5;  // [m] the approach starts this far back along -x
-  double lift_height = 1.0;        // [m] lifted straight up (world z) after closing
-  /// Gripper pose at release; the stone follows rigidly, so the expected stone placement is
-  /// T_world_place * T_world_gripper^-1 * (stone at grasp).
-  Eigen::Isometry3d T_world_place = Eigen::Isometry3d::Identity();
-  /// Swing: when set, the transport rotates about the vertical through this point (an
-  /// excavator's cabin axis) instead of moving in a straight line.
-  std::optional<Eigen::Vector2d> swing_pivot;
-  int target_stone = -1;  // when >= 0, grasping another stone is a failure ("wrong_stone")
-};
-
 /// Stable failure reason codes.
 namespace reason {
 inline constexpr const char* kCollisionApproach = "collision_approach";  // gripper hit something
@@ -221,12 +207,14 @@ struct PhaseTiming {
 };
 
 /// What the machine measures during a trial (Sec. 6.3: slip shows as the jaws closing further,
-/// a drop as the arm's load falling): the jaw opening (its wire-draw encoder) and the load the arm
-/// carries beyond the gripper's own weight (from the force of the arm's weld on the gripper).
+/// a drop as the arm's load falling): the jaw angle (its wire-draw encoder), the tip opening it
+/// gives, and the load the arm carries beyond the gripper's own weight (from the force of the
+/// arm's weld on the gripper).
 struct TraceSample {
-  double time = 0.0;      // [s] simulated
-  double opening = 0.0;   // [m] distance between the jaws' inner faces
-  double arm_load = 0.0;  // [N] vertical load on the arm minus the gripper's weight (static)
+  double time = 0.0;       // [s] simulated
+  double jaw_angle = 0.0;  // [rad] the jaws' angle (robot/gripper.hpp; both share it)
+  double opening = 0.0;    // [m] distance between the jaw tips (from the angle)
+  double arm_load = 0.0;   // [N] vertical load on the arm minus the gripper's weight (static)
 };
 
 struct GraspTrialResult {
@@ -310,7 +298,7 @@ void apply_stone_poses(Site& site, std::span<const Eigen::Isometry3d> poses);
 struct CentredGraspOptions {
   double palm_clearance = 0.05;  // [m] palm face above the stone's top
   double tip_clearance = 0.05;   // [m] jaw tips above the terrain (or the stone's bottom)
-  double opening_margin = 0.10;  // [m] pre-grasp opening = stone width + 2 * margin (capped)
+  double opening_margin = 0.10;  // [m] the open jaws clear the stone by this much (capped)
   double approach_distance = 0.5;  // [m]
   double lift_height = 1.0;        // [m]
   Eigen::Vector2d place_offset = Eigen::Vector2d(2.0, 0.0);  // [m] world xy shift of the place

@@ -19,7 +19,6 @@ using Eigen::Vector2d;
 using Eigen::Vector3d;
 
 constexpr double kMinElevationRange = 1e-3;  // [m] MuJoCo needs a positive height-field range
-constexpr double kJawGap = 0.005;            // [m] fully closed jaws stop this far apart
 // Contact buffers, sized by the free bodies: MuJoCo 2.2.2 allocates njmax^2 doubles (efc_AR)
 // and clears them when it makes its data (three times per load), so oversized buffers cost more
 // than the simulation itself (0.6 s per scene at njmax 3000). Measured: a stone on the height
@@ -217,6 +216,215 @@ std::string entity_name(int e) {
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Scene construction, step by step: the stones' mass properties, the height field's region and
+// samples, the MJCF text (options, assets, stones, gripper, its constraints), loading, seats, the
+// geom → entity table.
+
+namespace {
+
+/// Per-stone mass properties at unit density and radius about the centroid; throws InputError
+/// on a stone without a mesh.
+struct StoneBodies {
+  std::vector<MassProperties> props;
+  std::vector<double> radius;
+};
+
+StoneBodies stone_bodies(const Site& site) {
+  StoneBodies b;
+  for (std::size_t k = 0; k < site.stones.size(); ++k) {
+    const Stone& s = site.stones[k];
+    if (s.mesh.triangles.empty()) throw InputError("physics: stone " + std::to_string(k) + " has no mesh");
+    b.props.push_back(mass_properties(s.mesh, s.centroid));
+    double radius = 0.0;
+    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
+      radius = std::max(radius, (s.mesh.vertices.world(i) - b.props.back().centroid).norm());
+    }
+    b.radius.push_back(radius);
+  }
+  return b;
+}
+
+/// The height field's region: the free stones' footprints at their start poses (static stones
+/// never touch the terrain) and the points the spec names (the gripper's path), plus the margin.
+Eigen::AlignedBox2d terrain_region(const Site& site, const SceneSpec& spec, const std::vector<bool>& free,
+                                   double margin) {
+  Eigen::AlignedBox2d region;
+  for (std::size_t k = 0; k < site.stones.size(); ++k) {
+    if (!free[k]) continue;
+    const Stone& s = site.stones[k];
+    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) region.extend((spec.start_poses[k] * s.mesh.vertices.world(i)).head<2>());
+  }
+  for (const Vector2d& p : spec.extra_xy) region.extend(p);
+  if (region.isEmpty()) region.extend(Vector2d::Zero());
+  region.min().array() -= margin;
+  region.max().array() += margin;
+  return region;
+}
+
+std::string mjcf_header(const PhysicsConfig& c, int max_contacts) {
+  std::ostringstream x;
+  x.precision(17);
+  const std::string friction = num(c.friction) + " " + num(c.torsional_friction) + " " + num(c.rolling_friction);
+  x << "<mujoco model=\"cairn_site\">\n"
+    << "<compiler angle=\"radian\" inertiafromgeom=\"auto\"/>\n"
+    << "<option timestep=\"" << c.timestep << "\" gravity=\"0 0 -9.81\" cone=\"" << c.cone
+    << "\" jacobian=\"dense\" noslip_iterations=\"" << c.noslip_iterations << "\" iterations=\""
+    << c.solver_iterations << "\" tolerance=\"" << c.solver_tolerance << "\"/>\n"
+    << "<size nconmax=\"" << max_contacts << "\" njmax=\"" << max_contacts * kRowsPerContact << "\"/>\n"
+    << "<default><geom condim=\"6\" friction=\"" << friction << "\" solref=\"" << c.contact_timeconst
+    << " 1\" solimp=\"" << c.contact_impedance - kImpedanceSpan << ' ' << c.contact_impedance << " 0.001\"/></default>\n";
+  return x.str();
+}
+
+/// The height field and one collision mesh per stone (its hull vertices about its centroid).
+std::string mjcf_assets(const Site& site, const StoneBodies& bodies, const HeightField& hf, double range,
+                        const PhysicsConfig& c) {
+  std::ostringstream x;
+  x.precision(17);
+  x << "<asset>\n<hfield name=\"terrain\" nrow=\"" << hf.nrow << "\" ncol=\"" << hf.ncol << "\" size=\""
+    << 0.5 * (hf.ncol - 1) * hf.spacing << ' ' << 0.5 * (hf.nrow - 1) * hf.spacing << ' ' << range << ' '
+    << c.terrain_base << "\"/>\n";
+  for (std::size_t k = 0; k < site.stones.size(); ++k) {
+    const Stone& s = site.stones[k];
+    x << "<mesh name=\"stone" << k << "\" vertex=\"";
+    const std::vector<std::size_t> hull = collision_vertices(s.mesh, c.hull_subdivisions);
+    for (std::size_t i = 0; i < hull.size(); ++i) {
+      x << (i ? " " : "") << vec_attr(s.mesh.vertices.world(hull[i]) - bodies.props[k].centroid);
+    }
+    x << "\"/>\n";
+  }
+  x << "</asset>\n";
+  return x.str();
+}
+
+/// The terrain geom (its own rolling friction: the gravel bed) and the stone bodies.
+std::string mjcf_world(const Site& site, const SceneSpec& spec, const std::vector<bool>& free,
+                       const StoneBodies& bodies, const HeightField& hf, const PhysicsConfig& c) {
+  std::ostringstream x;
+  x.precision(17);
+  const double half_x = 0.5 * (hf.ncol - 1) * hf.spacing, half_y = 0.5 * (hf.nrow - 1) * hf.spacing;
+  x << "<geom name=\"terrain\" type=\"hfield\" hfield=\"terrain\" pos=\""
+    << vec_attr({hf.x0 + half_x, hf.y0 + half_y, hf.zmin}) << "\" friction=\"" << num(c.friction) << ' '
+    << num(c.torsional_friction) << ' ' << num(std::max(c.rolling_friction, c.ground_rolling_friction)) << "\"/>\n";
+  for (std::size_t k = 0; k < site.stones.size(); ++k) {
+    const Isometry3d& S = spec.start_poses[k];
+    const double mass = c.rock_density * bodies.props[k].volume;
+    const Matrix3d I = c.rock_density * bodies.props[k].inertia_unit_density;
+    x << "<body name=\"stone" << k << "\" pos=\"" << vec_attr(S * bodies.props[k].centroid) << "\" quat=\""
+      << quat_attr(S.linear()) << "\">\n" << (free[k] ? "<freejoint/>\n" : "")
+      << "<inertial pos=\"0 0 0\" mass=\"" << mass << "\" fullinertia=\"" << I(0, 0) << ' ' << I(1, 1) << ' '
+      << I(2, 2) << ' ' << I(0, 1) << ' ' << I(0, 2) << ' ' << I(1, 2) << "\"/>\n"
+      << "<geom name=\"stone" << k << "\" type=\"mesh\" mesh=\"stone" << k << "\"/>\n</body>\n";
+  }
+  return x.str();
+}
+
+std::string box_geom(const std::string& name, const Vector3d& center, const Matrix3d& axes, const Vector3d& half,
+                     double mass) {
+  return "<geom name=\"" + name + "\" type=\"box\" pos=\"" + vec_attr(center) + "\" quat=\"" + quat_attr(axes) +
+         "\" size=\"" + vec_attr(half) + "\" mass=\"" + num(mass) + "\"/>\n";
+}
+
+/// A jaw (in its hinge frame) as pads x pads boxes tiling its length and height: a flat contact
+/// gives several contact points (MuJoCo 2.2.2 reports one per convex pair) and resists rotation.
+std::string jaw_pads(const ConvexPart& jaw, const PhysicsConfig& c) {
+  std::string out;
+  const int n = c.jaw_pads;
+  const Vector3d half(jaw.half_extents.x() / n, jaw.half_extents.y(), jaw.half_extents.z() / n);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const Vector3d offset(-jaw.half_extents.x() + (2 * i + 1) * half.x(), 0.0, -jaw.half_extents.z() + (2 * j + 1) * half.z());
+      out += box_geom(jaw.name + "_" + std::to_string(i) + "_" + std::to_string(j), jaw.center + jaw.axes * offset,
+                      jaw.axes, half, c.jaw_mass / (n * n));
+    }
+  }
+  return out;
+}
+
+/// The angular gripper (robot/gripper.hpp): a free palm body held by the arm (a weld to a mocap
+/// target), two jaw bodies on hinges at their pivots, starting at the spec's opening, which is
+/// also as far as they open (the plan's pre-grasp opening; the hydraulics hold it). The joint
+/// value is the jaw angle itself (ref = the start angle); free tip speed jaw_speed under the
+/// full closing force.
+std::string mjcf_gripper(const SceneSpec& spec, const GripperConfig& g, const PhysicsConfig& c) {
+  const double angle0 = jaw_angle_for(g, spec.opening);
+  const double torque = g.closing_force * g.jaw_length;
+  const double damping = torque * g.jaw_length / c.jaw_speed;  // torque / (tip speed / length)
+  const std::string pose = "pos=\"" + vec_attr(spec.T_world_gripper.translation()) + "\" quat=\"" +
+                           quat_attr(spec.T_world_gripper.linear()) + "\"";
+  const ConvexPart palm = palm_part(g);
+  std::ostringstream x;
+  x.precision(17);
+  x << "<body name=\"gripper_target\" mocap=\"true\" " << pose << "/>\n"
+    << "<body name=\"gripper\" " << pose << ">\n<freejoint/>\n"
+    << box_geom(palm.name, palm.center, palm.axes, palm.half_extents, c.palm_mass);
+  for (const JawSide side : {JawSide::Left, JawSide::Right}) {
+    const ConvexPart jaw = jaw_part(g, side);
+    const Isometry3d T = T_gripper_jaw(g, side, angle0);
+    x << "<body name=\"" << jaw.name << "\" pos=\"" << vec_attr(T.translation()) << "\" quat=\""
+      << quat_attr(T.linear()) << "\">\n"
+      << "<joint name=\"" << jaw.name << "\" type=\"hinge\" axis=\"" << vec_attr(jaw_axis(side)) << "\" ref=\""
+      << num(angle0) << "\" limited=\"true\" range=\"" << num(min_jaw_angle(g)) << ' ' << num(angle0)
+      << "\" solreflimit=\"" << num(c.contact_timeconst) << " 1\" damping=\"" << num(damping) << "\"/>\n"
+      << jaw_pads(jaw, c) << "</body>\n";
+  }
+  x << "</body>\n";
+  return x.str();
+}
+
+/// The arm's weld, the jaws' mechanical coupling (one DoF: equal angles) and the hydraulic
+/// actuator acting on both (MuJoCo's palm-jaw contacts are parent-child, filtered by default).
+std::string mjcf_gripper_constraints(const GripperConfig& g, const PhysicsConfig& c) {
+  const double torque = g.closing_force * g.jaw_length;
+  std::ostringstream x;
+  x.precision(17);
+  x << "<contact><exclude body1=\"jaw_left\" body2=\"jaw_right\"/></contact>\n"
+    << "<equality><weld body1=\"gripper\" body2=\"gripper_target\" solref=\"" << c.arm_timeconst << " 1\"/>\n"
+    << "<joint joint1=\"jaw_right\" joint2=\"jaw_left\" polycoef=\"0 1 0 0 0\" solref=\"" << c.arm_timeconst
+    << " 1\"/></equality>\n<actuator>\n";
+  for (const char* jaw : {"jaw_left", "jaw_right"}) {
+    x << "<motor name=\"" << jaw << "\" joint=\"" << jaw << "\" gear=\"1\" ctrllimited=\"true\" ctrlrange=\""
+      << -torque << ' ' << torque << "\"/>\n";
+  }
+  x << "</actuator>\n";
+  return x.str();
+}
+
+/// Loads MJCF text through a virtual file system (MuJoCo 2.2.2 has no load-from-string).
+mjModel* load_mjcf(const std::string& xml) {
+  auto vfs = std::make_unique<mjVFS>();
+  mj_defaultVFS(vfs.get());
+  if (mj_makeEmptyFileVFS(vfs.get(), "site.xml", static_cast<int>(xml.size())) != 0) {
+    throw InputError("physics: cannot create the in-memory MJCF file");
+  }
+  const int file = mj_findFileVFS(vfs.get(), "site.xml");
+  std::memcpy(vfs->filedata[file], xml.data(), xml.size());
+  std::array<char, 1024> error{};
+  mjModel* m = nullptr;
+  {
+    // Scenes are built in parallel (settle_site's islands); MuJoCo 2.2.2 does not promise that
+    // its XML parser and compiler are reentrant, so one load at a time. Stepping is per scene.
+    static std::mutex loading;
+    const std::lock_guard<std::mutex> lock(loading);
+    m = mj_loadXML("site.xml", vfs.get(), error.data(), static_cast<int>(error.size()));
+  }
+  mj_deleteVFS(vfs.get());
+  if (m == nullptr) throw InputError(std::string("physics: MuJoCo rejected the model: ") + error.data());
+  return m;
+}
+
+/// Height-field samples normalised to [0, 1] of the elevation range, into the loaded model.
+void write_height_field(mjModel* m, const HeightField& hf, double range) {
+  const int hid = mj_name2id(m, mjOBJ_HFIELD, "terrain");
+  for (std::size_t i = 0; i < hf.z.size(); ++i) {
+    m->hfield_data[static_cast<std::size_t>(m->hfield_adr[hid]) + i] =
+        static_cast<float>(std::clamp((hf.z[i] - hf.zmin) / range, 0.0, 1.0));
+  }
+}
+
+}  // namespace
+
 Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripper,
              const PhysicsConfig& config) {
   const std::size_t n = site.stones.size();
@@ -228,200 +436,79 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
     mju_user_error = throw_mujoco_error;
     mju_user_warning = ignore_mujoco_warning;
   });
-
-  // Region of the height field: stones' footprints (at their start poses) and the gripper path.
-  Eigen::AlignedBox2d region;
-  std::vector<MassProperties> props(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    const Stone& s = site.stones[k];
-    if (s.mesh.triangles.empty()) throw InputError("physics: stone " + std::to_string(k) + " has no mesh");
-    props[k] = mass_properties(s.mesh, s.centroid);
-    double radius = 0.0;
-    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
-      const Vector3d p = spec.start_poses[k] * s.mesh.vertices.world(i);
-      if (free[k]) region.extend(p.head<2>());  // static stones never touch the terrain
-      radius = std::max(radius, (s.mesh.vertices.world(i) - props[k].centroid).norm());
-    }
-    stone_radius_.push_back(radius);
-  }
-  for (const Vector2d& p : spec.extra_xy) region.extend(p);
-  if (region.isEmpty()) region.extend(Vector2d::Zero());
-  region.min().array() -= config.terrain_margin;
-  region.max().array() += config.terrain_margin;
-  HeightField hf = sample_terrain(site.terrain, region, config.terrain_resolution);
+  const StoneBodies bodies = stone_bodies(site);
+  HeightField hf = sample_terrain(site.terrain, terrain_region(site, spec, free, config.terrain_margin),
+                                  config.terrain_resolution);
   const bool carve = config.seat_clearance >= 0.0 && !site.at_rest;
   if (carve) {  // seats reach at most down to the stones' lowest points
     for (const Stone& s : site.stones) hf.zmin = std::min(hf.zmin, s.bounds.min().z() - config.seat_clearance);
   }
-  const double half_x = 0.5 * (hf.ncol - 1) * hf.spacing, half_y = 0.5 * (hf.nrow - 1) * hf.spacing;
   const double range = std::max(hf.zmax - hf.zmin, kMinElevationRange);
-
   const int num_free = static_cast<int>(std::count(free.begin(), free.end(), true));
   const int gripper_geoms = spec.with_gripper ? 1 + 2 * config.jaw_pads * config.jaw_pads : 0;
   const int max_contacts = kContactsPerStone * num_free + kContactsPerGripperGeom * gripper_geoms + kContactsSpare;
-  std::ostringstream x;
-  x.precision(17);
-  const std::string friction = num(config.friction) + " " + num(config.torsional_friction) +
-                               " " + num(config.rolling_friction);
-  x << "<mujoco model=\"cairn_site\">\n"
-    << "<compiler angle=\"radian\" inertiafromgeom=\"auto\"/>\n"
-    << "<option timestep=\"" << config.timestep << "\" gravity=\"0 0 -9.81\" cone=\"" << config.cone
-    << "\" jacobian=\"dense\" noslip_iterations=\"" << config.noslip_iterations << "\" iterations=\"" << config.solver_iterations << "\" tolerance=\"" << config.solver_tolerance << "\"/>\n"
-    << "<size nconmax=\"" << max_contacts << "\" njmax=\"" << max_contacts * kRowsPerContact << "\"/>\n"
-    << "<default><geom condim=\"6\" friction=\"" << friction << "\" solref=\""
-    << config.contact_timeconst << " 1\" solimp=\"" << config.contact_impedance - kImpedanceSpan << ' '
-    << config.contact_impedance << " 0.001\"/></default>\n"
-    << "<asset>\n<hfield name=\"terrain\" nrow=\"" << hf.nrow << "\" ncol=\"" << hf.ncol
-    << "\" size=\"" << half_x << ' ' << half_y << ' ' << range << ' ' << config.terrain_base
-    << "\"/>\n";
-  for (std::size_t k = 0; k < n; ++k) {
-    const Stone& s = site.stones[k];
-    x << "<mesh name=\"stone" << k << "\" vertex=\"";
-    const std::vector<std::size_t> hull = collision_vertices(s.mesh, config.hull_subdivisions);
-    for (std::size_t i = 0; i < hull.size(); ++i) {
-      x << (i ? " " : "") << vec_attr(s.mesh.vertices.world(hull[i]) - props[k].centroid);
-    }
-    x << "\"/>\n";
-  }
-  x << "</asset>\n<worldbody>\n"
-    << "<geom name=\"terrain\" type=\"hfield\" hfield=\"terrain\" pos=\""
-    << vec_attr({hf.x0 + half_x, hf.y0 + half_y, hf.zmin}) << "\" friction=\"" << num(config.friction) << ' '
-    << num(config.torsional_friction) << ' ' << num(std::max(config.rolling_friction, config.ground_rolling_friction))
-    << "\"/>\n";
-  for (std::size_t k = 0; k < n; ++k) {
-    const Isometry3d& S = spec.start_poses[k];
-    const double mass = config.rock_density * props[k].volume;
-    const Matrix3d I = config.rock_density * props[k].inertia_unit_density;
-    x << "<body name=\"stone" << k << "\" pos=\"" << vec_attr(S * props[k].centroid) << "\" quat=\""
-      << quat_attr(S.linear()) << "\">\n" << (free[k] ? "<freejoint/>\n" : "")
-      << "<inertial pos=\"0 0 0\" mass=\"" << mass << "\" fullinertia=\"" << I(0, 0) << ' '
-      << I(1, 1) << ' ' << I(2, 2) << ' ' << I(0, 1) << ' ' << I(0, 2) << ' ' << I(1, 2) << "\"/>\n"
-      << "<geom name=\"stone" << k << "\" type=\"mesh\" mesh=\"stone" << k << "\"/>\n</body>\n";
-    stone_mass_.push_back(mass);
-    centroid_.push_back(props[k].centroid);
-  }
-  if (spec.with_gripper) {
-    const std::vector<ConvexPart> parts = gripper_parts(gripper, spec.opening);
-    const std::string pose = "pos=\"" + vec_attr(spec.T_world_gripper.translation()) +
-                             "\" quat=\"" + quat_attr(spec.T_world_gripper.linear()) + "\"";
-    const auto box = [&](const std::string& name, const Vector3d& center, const Vector3d& half, double mass) {
-      return "<geom name=\"" + name + "\" type=\"box\" pos=\"" + vec_attr(center) + "\" size=\"" +
-             vec_attr(half) + "\" mass=\"" + num(mass) + "\"/>\n";
-    };
-    // A jaw as pads x pads boxes tiling its x-z extent (body frame at the jaw's centre).
-    const auto jaw = [&](const ConvexPart& p) {
-      std::string out;
-      const int n_pad = config.jaw_pads;
-      const Vector3d half(p.half_extents.x() / n_pad, p.half_extents.y(), p.half_extents.z() / n_pad);
-      for (int i = 0; i < n_pad; ++i) {
-        for (int j = 0; j < n_pad; ++j) {
-          const Vector3d c(-p.half_extents.x() + (2 * i + 1) * half.x(), 0.0,
-                           -p.half_extents.z() + (2 * j + 1) * half.z());
-          out += box(p.name + "_" + std::to_string(i) + "_" + std::to_string(j), c, half,
-                     config.jaw_mass / (n_pad * n_pad));
-        }
-      }
-      return out;
-    };
-    const double travel = std::max(0.0, 0.5 * spec.opening - kJawGap);
-    x << "<body name=\"gripper_target\" mocap=\"true\" " << pose << "/>\n"
-      << "<body name=\"gripper\" " << pose << ">\n<freejoint/>\n"
-      << box(parts[0].name, parts[0].center, parts[0].half_extents, config.palm_mass);
-    for (int j = 1; j <= 2; ++j) {
-      const ConvexPart& p = parts[static_cast<std::size_t>(j)];
-      const Vector3d axis(0.0, j == 1 ? 1.0 : -1.0, 0.0);  // closing direction of this jaw
-      x << "<body name=\"" << p.name << "\" pos=\"" << vec_attr(p.center) << "\">\n"
-        << "<joint name=\"" << p.name << "\" type=\"slide\" axis=\"" << vec_attr(axis)
-        << "\" limited=\"true\" range=\"0 " << travel << "\" damping=\""
-        << gripper.closing_force / config.jaw_speed << "\"/>\n"
-        << jaw(p) << "</body>\n";
-    }
-    x << "</body>\n";
-  }
-  x << "</worldbody>\n";
-  if (spec.with_gripper) {
-    x << "<contact><exclude body1=\"jaw_left\" body2=\"jaw_right\"/></contact>\n"
-      << "<equality><weld body1=\"gripper\" body2=\"gripper_target\" solref=\""
-      << config.arm_timeconst << " 1\"/></equality>\n"
-      << "<actuator>\n";
-    for (const char* jaw : {"jaw_left", "jaw_right"}) {
-      x << "<motor name=\"" << jaw << "\" joint=\"" << jaw << "\" gear=\"1\" ctrllimited=\"true\" ctrlrange=\""
-        << -gripper.closing_force << ' ' << gripper.closing_force << "\"/>\n";
-    }
-    x << "</actuator>\n";
-  }
-  x << "</mujoco>\n";
-
-  // Load through a virtual file system (MuJoCo 2.2.2 has no load-from-string).
-  const std::string xml = x.str();
-  auto vfs = std::make_unique<mjVFS>();
-  mj_defaultVFS(vfs.get());
-  if (mj_makeEmptyFileVFS(vfs.get(), "site.xml", static_cast<int>(xml.size())) != 0) {
-    throw InputError("physics: cannot create the in-memory MJCF file");
-  }
-  const int file = mj_findFileVFS(vfs.get(), "site.xml");
-  std::memcpy(vfs->filedata[file], xml.data(), xml.size());
-  std::array<char, 1024> error{};
-  {
-    // Scenes are built in parallel (settle_site's islands); MuJoCo 2.2.2 does not promise that
-    // its XML parser and compiler are reentrant, so one load at a time. Stepping is per scene.
-    static std::mutex loading;
-    const std::lock_guard<std::mutex> lock(loading);
-    m_ = mj_loadXML("site.xml", vfs.get(), error.data(), static_cast<int>(error.size()));
-  }
-  mj_deleteVFS(vfs.get());
-  if (m_ == nullptr) throw InputError(std::string("physics: MuJoCo rejected the model: ") + error.data());
+  std::string xml = mjcf_header(config, max_contacts) + mjcf_assets(site, bodies, hf, range, config) +
+                    "<worldbody>\n" + mjcf_world(site, spec, free, bodies, hf, config);
+  if (spec.with_gripper) xml += mjcf_gripper(spec, gripper, config);
+  xml += "</worldbody>\n";
+  if (spec.with_gripper) xml += mjcf_gripper_constraints(gripper, config);
+  xml += "</mujoco>\n";
+  m_ = load_mjcf(xml);
   d_ = mj_makeData(m_);
   if (d_ == nullptr) {
     mj_deleteModel(m_);
     throw InputError("physics: MuJoCo could not allocate its data");
   }
-
-  // Seats under the stones' hulls at their placement in the Site, then the height-field samples
-  // normalised to [0, 1] of the elevation range.
+  // Seats under the stones' hulls at their placement in the Site.
   if (carve) {
     for (std::size_t k = 0; k < n; ++k) {
       if (!free[k]) continue;
       const std::string name = "stone" + std::to_string(k);
-      carve_seats(hf, hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), props[k].centroid),
+      carve_seats(hf, hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), bodies.props[k].centroid),
                   config.seat_clearance);
     }
   }
-  const int hid = mj_name2id(m_, mjOBJ_HFIELD, "terrain");
-  for (std::size_t i = 0; i < hf.z.size(); ++i) {
-    m_->hfield_data[static_cast<std::size_t>(m_->hfield_adr[hid]) + i] =
-        static_cast<float>(std::clamp((hf.z[i] - hf.zmin) / range, 0.0, 1.0));
-  }
-  // Entities of the geoms, stone bodies and gripper handles.
-  geom_entity_.assign(static_cast<std::size_t>(m_->ngeom), kTerrain);
+  write_height_field(m_, hf, range);
   for (std::size_t k = 0; k < n; ++k) {
+    stone_mass_.push_back(config.rock_density * bodies.props[k].volume);
+    centroid_.push_back(bodies.props[k].centroid);
+  }
+  stone_radius_ = bodies.radius;
+  index_entities(free, spec.with_gripper);
+  if (spec.with_gripper) {
+    jaw_length_ = gripper.jaw_length;
+    closing_torque_ = gripper.closing_force * gripper.jaw_length;
+    gripper_weight_ = m_->body_subtreemass[gripper_body_] * -m_->opt.gravity[2];
+  }
+  gripper_ = gripper;
+  at_rest_ = site.at_rest;
+  mj_forward(m_, d_);
+}
+
+void Scene::index_entities(const std::vector<bool>& free, bool with_gripper) {
+  geom_entity_.assign(static_cast<std::size_t>(m_->ngeom), kTerrain);
+  for (std::size_t k = 0; k < free.size(); ++k) {
     const std::string name = "stone" + std::to_string(k);
     const int body = mj_name2id(m_, mjOBJ_BODY, name.c_str());
     stone_body_.push_back(body);
     stone_qvel_.push_back(free[k] ? m_->jnt_dofadr[m_->body_jntadr[body]] : -1);
     geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, name.c_str()))] = static_cast<int>(k);
   }
-  if (spec.with_gripper) {
-    geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, "palm"))] = kPalm;
-    const int jaw_body[2] = {mj_name2id(m_, mjOBJ_BODY, "jaw_left"), mj_name2id(m_, mjOBJ_BODY, "jaw_right")};
-    for (int g = 0; g < m_->ngeom; ++g) {
-      if (m_->geom_bodyid[g] == jaw_body[0]) geom_entity_[static_cast<std::size_t>(g)] = kJawLeft;
-      if (m_->geom_bodyid[g] == jaw_body[1]) geom_entity_[static_cast<std::size_t>(g)] = kJawRight;
-    }
-    gripper_body_ = mj_name2id(m_, mjOBJ_BODY, "gripper");
-    mocap_ = m_->body_mocapid[mj_name2id(m_, mjOBJ_BODY, "gripper_target")];
-    const char* jaws[2] = {"jaw_left", "jaw_right"};
-    for (int j = 0; j < 2; ++j) {
-      const int jid = mj_name2id(m_, mjOBJ_JOINT, jaws[j]);
-      jaw_qpos_[j] = m_->jnt_qposadr[jid];
-      jaw_dof_[j] = m_->jnt_dofadr[jid];
-    }
-    opening0_ = std::clamp(spec.opening, 0.0, gripper.max_opening);
-    gripper_weight_ = m_->body_subtreemass[gripper_body_] * -m_->opt.gravity[2];
-    closing_force_ = gripper.closing_force;
+  if (!with_gripper) return;
+  geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, "palm"))] = kPalm;
+  const int jaw_body[2] = {mj_name2id(m_, mjOBJ_BODY, "jaw_left"), mj_name2id(m_, mjOBJ_BODY, "jaw_right")};
+  for (int g = 0; g < m_->ngeom; ++g) {
+    if (m_->geom_bodyid[g] == jaw_body[0]) geom_entity_[static_cast<std::size_t>(g)] = kJawLeft;
+    if (m_->geom_bodyid[g] == jaw_body[1]) geom_entity_[static_cast<std::size_t>(g)] = kJawRight;
   }
-  at_rest_ = site.at_rest;
-  mj_forward(m_, d_);
+  gripper_body_ = mj_name2id(m_, mjOBJ_BODY, "gripper");
+  mocap_ = m_->body_mocapid[mj_name2id(m_, mjOBJ_BODY, "gripper_target")];
+  const char* jaws[2] = {"jaw_left", "jaw_right"};
+  for (int j = 0; j < 2; ++j) {
+    const int jid = mj_name2id(m_, mjOBJ_JOINT, jaws[j]);
+    jaw_qpos_[j] = m_->jnt_qposadr[jid];
+    jaw_dof_[j] = m_->jnt_dofadr[jid];
+  }
 }
 
 void Scene::relax(const PhysicsConfig& c, const std::vector<bool>& damped) {
@@ -511,15 +598,17 @@ void Scene::set_gripper_target(const Isometry3d& T) {
 }
 
 void Scene::set_jaw_command(double u) {
-  const double f = std::clamp(u, -1.0, 1.0) * closing_force_;
-  d_->ctrl[0] = f;
-  d_->ctrl[1] = f;
+  const double torque = -std::clamp(u, -1.0, 1.0) * closing_torque_;  // a positive angle opens
+  d_->ctrl[0] = torque;
+  d_->ctrl[1] = torque;
 }
 
-double Scene::opening() const { return opening0_ - d_->qpos[jaw_qpos_[0]] - d_->qpos[jaw_qpos_[1]]; }
+double Scene::jaw_angle() const { return 0.5 * (d_->qpos[jaw_qpos_[0]] + d_->qpos[jaw_qpos_[1]]); }
+
+double Scene::opening() const { return opening_at(gripper_, jaw_angle()); }
 
 double Scene::jaw_speed() const {
-  return std::max(std::abs(d_->qvel[jaw_dof_[0]]), std::abs(d_->qvel[jaw_dof_[1]]));
+  return jaw_length_ * std::max(std::abs(d_->qvel[jaw_dof_[0]]), std::abs(d_->qvel[jaw_dof_[1]]));
 }
 
 double Scene::arm_load() const {
@@ -531,6 +620,22 @@ double Scene::arm_load() const {
     if (d_->efc_type[i] == mjCNSTR_EQUALITY) up += d_->efc_J[i * m_->nv + dof_z] * d_->efc_force[i];
   }
   return up - gripper_weight_;
+}
+
+std::vector<Scene::GeomBox> Scene::gripper_boxes() const {
+  std::vector<GeomBox> out;
+  for (int g = 0; g < m_->ngeom; ++g) {
+    const int e = geom_entity_[static_cast<std::size_t>(g)];
+    if (!is_gripper(e)) continue;
+    GeomBox b{.entity = e};
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) b.pose.linear()(r, c) = d_->geom_xmat[9 * g + 3 * r + c];
+      b.pose.translation()[r] = d_->geom_xpos[3 * g + r];
+      b.half[r] = m_->geom_size[3 * g + r];
+    }
+    out.push_back(b);
+  }
+  return out;
 }
 
 std::vector<Contact> Scene::contacts() const {

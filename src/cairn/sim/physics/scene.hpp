@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "cairn/core/gripper.hpp"
+#include "cairn/robot/gripper.hpp"
 #include "cairn/sim/physics/physics.hpp"
 #include "cairn/sim/procedural_site.hpp"
 
@@ -26,7 +26,7 @@ struct SceneSpec {
   std::vector<bool> free;
   bool with_gripper = false;
   Eigen::Isometry3d T_world_gripper = Eigen::Isometry3d::Identity();  // gripper start pose
-  double opening = 1.0;                   // [m] jaw distance when the joints are at zero
+  double opening = 1.0;                   // [m] jaw tip distance at the start
   std::vector<Eigen::Vector2d> extra_xy;  // points the height field must cover (gripper path)
 };
 
@@ -74,13 +74,23 @@ class Scene {
   // Gripper (only when built with_gripper).
   [[nodiscard]] Eigen::Isometry3d gripper_pose() const;
   void set_gripper_target(const Eigen::Isometry3d& T_world_gripper);
-  /// Jaw force command: +1 closes with the full closing force, -1 opens.
+  /// Jaw command: +1 closes with the full closing force, -1 opens.
   void set_jaw_command(double u);
-  [[nodiscard]] double opening() const;
-  [[nodiscard]] double jaw_speed() const;  // largest |jaw joint velocity| [m/s]
+  [[nodiscard]] double jaw_angle() const;  // [rad] mean of the two coupled jaws
+  [[nodiscard]] double opening() const;    // [m] between the jaw tips
+  [[nodiscard]] double jaw_speed() const;  // largest jaw tip speed [m/s]
   /// Vertical force [N] the arm (the weld to the mocap target) exerts on the gripper beyond the
   /// gripper's own weight: the load cell of the arm.
   [[nodiscard]] double arm_load() const;
+
+  /// A box geom of the gripper in the world: its entity (kPalm, kJawLeft, kJawRight), pose and
+  /// half sizes (the jaws are split into pads).
+  struct GeomBox {
+    int entity = kPalm;
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    Eigen::Vector3d half = Eigen::Vector3d::Zero();
+  };
+  [[nodiscard]] std::vector<GeomBox> gripper_boxes() const;
 
   /// Current contacts between different entities.
   [[nodiscard]] std::vector<Contact> contacts() const;
@@ -97,7 +107,11 @@ class Scene {
   std::vector<Eigen::Vector3d> centroid_;  // original centroids
   std::vector<double> stone_mass_, stone_radius_;
   std::vector<int> geom_entity_;
-  double opening0_ = 0.0, closing_force_ = 0.0, gripper_weight_ = 0.0;
+  /// Fills the geom → entity table, the stone bodies and dofs, the gripper's handles.
+  void index_entities(const std::vector<bool>& free, bool with_gripper);
+
+  GripperConfig gripper_;
+  double jaw_length_ = 0.0, closing_torque_ = 0.0, gripper_weight_ = 0.0;
   bool at_rest_ = false;  // Site::at_rest: no seats, no gentle start
   int gripper_body_ = -1, mocap_ = -1, jaw_qpos_[2] = {-1, -1}, jaw_dof_[2] = {-1, -1};
 };
