@@ -13,5 +13,6 @@ void add_map_command(CLI::App& app, std::function<int()>& run);
 void add_scale_command(CLI::App& app, std::function<int()>& run);
 void add_register_command(CLI::App& app, std::function<int()>& run);
 void add_protocol_command(CLI::App& app, std::function<int()>& run);
-void add_grasp_trial_command(CLI::App& app, std::function<int()>& run);  // needs MuJoCo
+void add_grasp_trial_command(CLI::App& app, std::function<int()>& run);
+void add_grasp_baseline_command(CLI::App& app, std::function<int()>& run);
 }  // namespace cairn::app

@@ -353,5 +353,21 @@ TEST(Cli, GraspTrialOnASettledScenarioSite) {
     }
   }
   EXPECT_EQ(j["trace"]["time"].size(), j["trace"]["opening"].size());
+  EXPECT_EQ(j["trace"]["time"].size(), j["trace"]["jaw_angle"].size());
   EXPECT_EQ(run("grasp-trial --scenario exp1 --seed 1 --stone 7").code, 2);  // no such stone
+}
+
+TEST(Cli, GraspBaselinePrintsTheTableAndWritesEveryTrial) {
+  const std::filesystem::path out = test::temp_dir("cli_grasp_baseline") / "baseline.json";
+  const CmdResult r = run("grasp-baseline --scenarios exp1 --seeds 1 --out " + out.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("success "), std::string::npos) << r.out;
+  std::ifstream in(out);
+  const auto j = nlohmann::json::parse(in);
+  ASSERT_EQ(j["trials"].size(), 7u);
+  int successes = 0;
+  for (const auto& t : j["trials"]) successes += t["success"].get<bool>() ? 1 : 0;
+  EXPECT_EQ(j["summary"]["successes"].get<int>(), successes);
+  EXPECT_EQ(j["summary"]["trials"].get<int>(), 7);
+  EXPECT_EQ(run("grasp-baseline --scenarios nope --seeds 1").code, 2);  // unknown scenario
 }

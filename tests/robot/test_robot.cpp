@@ -32,7 +32,7 @@ TEST(Gripper, OpeningIsTheTipDistanceOfTheCoupledJaws) {
   // Parallel jaws at the pivot spacing; fully closed at the gap; fully open at 35 deg.
   EXPECT_NEAR(jaw_angle_for(g, g.hinge_spacing), 0.0, 1e-12);
   EXPECT_NEAR(opening_at(g, min_jaw_angle(g)), g.closed_gap, 1e-12);
-  EXPECT_NEAR(max_opening(g), 0.8 + 2.0 * std::sin(35.0 * std::numbers::pi / 180.0), 1e-12);
+  EXPECT_NEAR(max_opening(g), g.hinge_spacing + 2.0 * g.jaw_length * std::sin(35.0 * std::numbers::pi / 180.0), 1e-12);
   EXPECT_NEAR(jaw_angle_for(g, 5.0), max_jaw_angle(g), 1e-12);  // clamped
   EXPECT_NEAR(jaw_angle_for(g, 0.0), min_jaw_angle(g), 1e-12);
 }
@@ -59,12 +59,16 @@ TEST(Gripper, PartsAreThePalmAndTheJawsAtTheirPivots) {
   }
   // The palm lies behind the origin; the jaws do not reach into it.
   for (const Vector3d& v : parts[0].vertices) EXPECT_LE(v.x(), 1e-12);
-  // Closing region: between the jaws, in front of the palm, within the jaws' height.
+  // Closing region: between the jaws' inner faces (at depth x: hinge_spacing / 2 + x tan(angle)
+  // off the centre line), in front of the palm, within the jaws' height.
+  const double edge = 0.5 * g.hinge_spacing + 0.5 * std::tan(angle);  // at x = 0.5
   EXPECT_TRUE(in_closing_region(g, 1.4, {0.5, 0.0, 0.0}));
-  EXPECT_TRUE(in_closing_region(g, 1.4, {0.9, 0.6, 0.2}));
-  EXPECT_FALSE(in_closing_region(g, 1.4, {0.1, 0.6, 0.0}));  // outside the jaws near the pivots
+  EXPECT_TRUE(in_closing_region(g, 1.4, {0.5, edge - 0.01, 0.2}));
+  EXPECT_FALSE(in_closing_region(g, 1.4, {0.5, edge + 0.01, 0.0}));   // beyond the right jaw's face
+  EXPECT_FALSE(in_closing_region(g, 1.4, {0.5, -edge - 0.01, 0.0}));  // beyond the left one's
   EXPECT_FALSE(in_closing_region(g, 1.4, {-0.1, 0.0, 0.0}));  // behind the palm's face
-  EXPECT_FALSE(in_closing_region(g, 1.4, {0.5, 0.0, 0.3}));   // above the jaws
+  EXPECT_FALSE(in_closing_region(g, 1.4, {0.5, 0.0, 0.5 * g.jaw_height + 0.01}));  // above the jaws
+  EXPECT_FALSE(in_closing_region(g, 1.4, {g.jaw_length + 0.01, 0.0, 0.0}));      // past the tips
 }
 
 TEST(Gripper, ValidateNamesTheField) {

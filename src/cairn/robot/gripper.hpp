@@ -20,10 +20,14 @@
 // The opening (what the grasp plan commands and the wire-draw encoder of the paper's Sec. 6.3
 // reports, converted) is the distance between the two jaws' inner tip edges.
 //
-// Defaults fit 0.5-1 m^3 boulders (0.9-1.5 m across, shortest horizontal extent 0.6-1.2 m):
-// pivots 0.8 m apart, so a stone of about that width is held between near-parallel jaws; the tips
-// open to 1.95 m (35 deg), and the jaws reach 1 m down, past the middle of a 0.7 m high stone.
-// They are this project's assumption: the paper gives no dimensions.
+// Defaults fit 0.5-1 m^3 boulders (0.9-1.5 m across, shortest horizontal extent 0.9-1.3 m on the
+// scenarios' stones): the pivots sit 1.4 m apart, so most stones are held by jaws that converge
+// towards their tips and touch the stone below its widest section, cradling it (diverging jaws
+// touch a rounded stone above it and squeeze it out: with pivots 0.8 m apart the centred grasp
+// held 0 of 7 exp1 stones, with 1.4 m 5 of 14; docs/simulator-physics.md). The tips open to
+// 2.55 m (35 deg) and reach 1 m down. These are this project's assumptions: the paper gives no
+// dimensions.
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <string>
@@ -33,13 +37,13 @@ namespace cairn {
 
 struct GripperConfig {
   double palm_depth = 0.40;      // [m] along x (behind the origin: x in [-palm_depth, 0])
-  double palm_width = 1.00;      // [m] along y
+  double palm_width = 1.60;      // [m] along y
   double palm_height = 0.60;     // [m] along z
-  double hinge_spacing = 0.80;   // [m] distance between the two jaw pivots (along y)
+  double hinge_spacing = 1.40;   // [m] distance between the two jaw pivots (along y)
   double jaw_length = 1.00;      // [m] pivot to tip
   double jaw_thickness = 0.12;   // [m] across the jaw (outwards from its inner face)
   double jaw_height = 0.50;      // [m] along z
-  double max_jaw_angle_deg = 35.0;  // [deg] fully open (tips 1.95 m apart at the defaults)
+  double max_jaw_angle_deg = 35.0;  // [deg] fully open (tips 2.55 m apart at the defaults)
   double closed_gap = 0.01;      // [m] fully closed, the tips stop this far apart
   double tcp_depth = 0.60;       // [m] tool centre point on the x-axis
   double closing_force = 60e3;   // [N] hydraulic closing force of each jaw, at its tip

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <iomanip>
+#include <map>
 #include <numbers>
 #include <sstream>
 
@@ -27,6 +28,7 @@ constexpr double kGravity = 9.81;           // [m/s^2], as in the generated mode
 constexpr double kCloseMinTime = 0.1;       // [s] closing runs at least this long
 constexpr double kJawStopHold = 0.05;       // [s] jaws must stay stopped this long
 constexpr double kEmptyOpening = 0.02;      // [m] jaws this close together hold nothing
+constexpr double kContactWindow = 0.05;     // [s] a jaw touches what it touched this recently
 constexpr double kExtentAngleStep = 0.5;    // [deg] search step of the shortest extent
 constexpr int kJawFootprintSamples = 9;     // per axis, terrain samples under the jaws' sweep
 
@@ -433,6 +435,7 @@ class Trial {
     while (scene_.time() - start < c_.close_time) {
       step();
       for (const Contact& c : scene_.contacts()) {
+        note_jaw_contact(c);
         if (detail::is_gripper(c.a) && c.b == detail::kTerrain && hard(c)) {
           fail(reason::kCollisionClose, "close: " + detail::entity_name(c.a) + " hit the terrain" + at_time() + depth_text(c));
           return false;
@@ -445,13 +448,20 @@ class Trial {
     return true;
   }
 
-  /// Stones each jaw touches after closing.
-  std::pair<std::vector<int>, std::vector<int>> jaw_contacts() const {
+  /// Remembers when a jaw last touched a stone (the monitors see every contact of every step).
+  void note_jaw_contact(const Contact& c) {
+    if (c.b < 0 || (c.a != detail::kJawLeft && c.a != detail::kJawRight)) return;
+    last_touch_[{c.a, c.b}] = scene_.time();
+  }
+
+  /// Stones each jaw touched within the last kContactWindow: a jaw pressing an edge with tens
+  /// of kN chatters, and its contact set flickers from one step to the next.
+  std::pair<std::vector<int>, std::vector<int>> jaw_contacts() {
+    for (const Contact& c : scene_.contacts()) note_jaw_contact(c);
     std::pair<std::vector<int>, std::vector<int>> s;
-    for (const Contact& c : scene_.contacts()) {
-      if (c.b < 0) continue;
-      if (c.a == detail::kJawLeft) s.first.push_back(c.b);
-      if (c.a == detail::kJawRight) s.second.push_back(c.b);
+    for (const auto& [key, time] : last_touch_) {
+      if (scene_.time() - time > kContactWindow) continue;
+      (key.first == detail::kJawLeft ? s.first : s.second).push_back(key.second);
     }
     return s;
   }
@@ -492,6 +502,7 @@ class Trial {
   bool transport_ok(bool lifting) {
     const int g = r_.grasped_stone;
     for (const Contact& c : scene_.contacts()) {
+      note_jaw_contact(c);
       if (!hard(c)) continue;
       const bool gripper_hit = detail::is_gripper(c.a) && c.b != g;
       const bool stone_hit = (c.a == g || c.b == g) && !detail::is_gripper(c.a) && !(lifting && c.a == detail::kTerrain);
@@ -572,6 +583,7 @@ class Trial {
   double opening_at_lift_ = 0.0;
   std::string phase_name_;
   double next_trace_ = 0.0;
+  std::map<std::pair<int, int>, double> last_touch_;  // (jaw, stone) -> last contact time
   GraspTrialResult r_;
 };
 

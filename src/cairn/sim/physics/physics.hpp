@@ -74,7 +74,7 @@ struct PhysicsConfig {
   // Gripper dynamics (geometry and closing force come from GripperConfig).
   double palm_mass = 1200.0;      // [kg]
   double jaw_mass = 250.0;        // [kg] each
-  double jaw_speed = 0.4;         // [m/s] free closing speed of a jaw tip (sets the joint damping)
+  double jaw_speed = 0.5;         // [m/s] free closing speed of a jaw tip (sets the joint damping)
   /// Each jaw is split into pads x pads boxes (same outer shape), so a flat contact gives several
   /// contact points (MuJoCo 2.2.2 reports one point per convex pair) and resists rotation.
   int jaw_pads = 2;
