@@ -18,8 +18,8 @@ namespace {
 
 struct GraspBaselineArgs {
   CommonOptions common;
-  std::vector<std::string> scenarios = {"exp1", "exp2"};
-  std::vector<std::uint64_t> seeds = {1, 2, 3, 4, 5, 6, 7, 8};
+  std::vector<std::string> scenarios = eval::GraspBaselineConfig{}.scenarios;
+  std::vector<std::uint64_t> seeds = eval::GraspBaselineConfig{}.seeds;
   std::string out;
 };
 

@@ -137,6 +137,9 @@ TEST(GraspPlan, JsonRoundTripsAndRejectsBadInput) {
   GraspPlan wide = plan;
   wide.opening = max_opening(g) + 0.01;
   EXPECT_THROW(validate(wide, g), InputError);
+  GraspPlan shut = plan;
+  shut.opening = g.closed_gap;  // nothing to close: the jaws start fully closed
+  EXPECT_THROW(validate(shut, g), InputError);
   GraspPlan skew = plan;
   skew.T_world_place.linear()(0, 0) += 0.1;
   EXPECT_THROW(validate(skew, g), InputError);

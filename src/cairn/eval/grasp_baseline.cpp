@@ -1,6 +1,10 @@
 #include "cairn/eval/grasp_baseline.hpp"
 
+#include <algorithm>
+#include <filesystem>
 #include <mutex>
+#include <optional>
+#include <stdexcept>
 
 #include <tbb/parallel_for.h>
 
@@ -15,12 +19,13 @@ struct SiteJob {
   std::uint64_t seed = 0;
   sim::Site site;
   bool at_rest = false;
-  std::string error;  // the generator's InputError, when it could not make the site
+  std::string error;  // why the site could not be made (the generator's ConfigError, a mesh's InputError)
 };
 
 /// The scenario's site of `seed`, settled at rest in the physics (as the sensors see it).
-SiteJob settled_site(const std::string& scenario, std::uint64_t seed, const GraspBaselineConfig& c) {
-  sim::SimulationConfig cfg = sim::scenario_config(scenario, sim::default_real_mesh_dir());
+SiteJob settled_site(const std::string& scenario, std::uint64_t seed, const GraspBaselineConfig& c,
+                     const std::filesystem::path& mesh_dir) {
+  sim::SimulationConfig cfg = sim::scenario_config(scenario, mesh_dir);
   cfg.physics = c.physics;
   cfg.gripper = c.gripper;
   cfg.settle_in_physics = true;
@@ -28,7 +33,7 @@ SiteJob settled_site(const std::string& scenario, std::uint64_t seed, const Gras
   SiteJob job{.scenario = scenario, .seed = seed};
   try {
     job.site = sim::make_site(cfg, seed, &settle);
-  } catch (const ConfigError& e) {  // e.g. "generate_site: cannot place stone 6 of 7 ..."
+  } catch (const std::runtime_error& e) {  // e.g. "generate_site: cannot place stone 7 of 7 ..."
     job.error = e.what();
   }
   job.at_rest = settle.settled;
@@ -70,9 +75,16 @@ GraspBaselineResult run_grasp_baseline(const GraspBaselineConfig& c, const std::
   for (const std::string& scenario : c.scenarios) {
     for (const std::uint64_t seed : c.seeds) keys.emplace_back(scenario, seed);
   }
-  for (const std::string& scenario : c.scenarios) (void)sim::scenario_config(scenario, {});  // ConfigError early
+  const std::vector<std::string> known = sim::scenario_names();
+  for (const std::string& scenario : c.scenarios) {
+    if (std::find(known.begin(), known.end(), scenario) == known.end()) {
+      (void)sim::scenario_config(scenario, {});  // throws the ConfigError listing the known names
+    }
+  }
+  const std::filesystem::path mesh_dir = sim::default_real_mesh_dir();
   std::vector<SiteJob> sites(keys.size());
-  tbb::parallel_for(std::size_t{0}, keys.size(), [&](std::size_t i) { sites[i] = settled_site(keys[i].first, keys[i].second, c); });
+  tbb::parallel_for(std::size_t{0}, keys.size(),
+                    [&](std::size_t i) { sites[i] = settled_site(keys[i].first, keys[i].second, c, mesh_dir); });
   GraspBaselineResult r;
   std::vector<std::pair<std::size_t, int>> jobs;  // (site, stone)
   for (std::size_t i = 0; i < sites.size(); ++i) {

@@ -7,6 +7,7 @@
 // Trials run in parallel (each is deterministic, so the results do not depend on scheduling).
 #include <cstdint>
 #include <functional>
+#include <numbers>
 #include <map>
 #include <string>
 #include <vector>
@@ -19,7 +20,7 @@ namespace cairn::eval {
 struct GraspBaselineConfig {
   std::vector<std::string> scenarios = {"exp1", "exp2"};
   std::vector<std::uint64_t> seeds = {1, 2, 3, 4};
-  double place_yaw = 1.5707963267948966;  // [rad] the move: a quarter turn about the vertical
+  double place_yaw = 0.5 * std::numbers::pi;  // [rad] the move: a quarter turn about the vertical
   sim::PhysicsConfig physics;
   GripperConfig gripper;
 };
@@ -43,8 +44,9 @@ struct GraspBaselineSummary {
 
 struct GraspBaselineResult {
   std::vector<GraspBaselineTrial> trials;  // scenario, seed, stone order
-  /// Sites the generator could not make for their seed ("exp2 seed 7: generate_site: cannot
-  /// place ..."): no trials, reported instead of aborting the run.
+  /// Sites the generator could not make for their seed ("exp2 seed 8: generate_site: cannot
+  /// place ..."), and trials that could not run ("exp1 seed 1 stone 3: ..."): reported instead
+  /// of aborting the run.
   std::vector<std::string> skipped_sites;
   GraspBaselineSummary summary;
 };

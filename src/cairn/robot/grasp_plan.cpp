@@ -61,10 +61,7 @@ Isometry3d pose_from_json(const nlohmann::json& j, const std::string& what) {
     if ((T.matrix().row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > kRigidTolerance) {
       throw InputError(what + ": last row must be [0, 0, 0, 1]");
     }
-    const Eigen::Matrix3d R = T.linear();
-    if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > kRigidTolerance || R.determinant() < 0) {
-      throw InputError(what + ": rotation is not orthonormal");
-    }
+    require_rigid_pose(T, what);
     return T;
   }
   if (j.is_object() && j.contains("position") && j.contains("quaternion_wxyz")) {
@@ -118,8 +115,9 @@ GraspPlan grasp_plan_from_json(const nlohmann::json& j, const std::string& sourc
 void validate(const GraspPlan& plan, const GripperConfig& gripper) {
   require_rigid_pose(plan.T_world_gripper, "grasp plan: T_world_gripper");
   require_rigid_pose(plan.T_world_place, "grasp plan: T_world_place");
-  if (!(plan.opening > 0.0 && plan.opening <= max_opening(gripper) + 1e-9)) {
-    throw InputError("grasp plan: opening must lie in (0, max_opening = " + std::to_string(max_opening(gripper)) + "]");
+  if (!(plan.opening > gripper.closed_gap && plan.opening <= max_opening(gripper) + 1e-9)) {
+    throw InputError("grasp plan: opening must lie in (closed_gap = " + std::to_string(gripper.closed_gap) +
+                     ", max_opening = " + std::to_string(max_opening(gripper)) + "]");
   }
   if (!(std::isfinite(plan.approach_distance) && plan.approach_distance >= 0.0 && std::isfinite(plan.lift_height) &&
         plan.lift_height >= 0.0)) {

@@ -34,8 +34,8 @@ struct GraspPlan {
   int target_stone = -1;  // when >= 0, grasping another stone is a failure ("wrong_stone")
 };
 
-/// Throws InputError on non-finite or non-rigid poses, an opening outside (0, max_opening],
-/// negative distances.
+/// Throws InputError on non-finite or non-rigid poses, an opening outside (closed_gap,
+/// max_opening], negative distances.
 void validate(const GraspPlan& plan, const GripperConfig& gripper);
 
 /// Throws InputError "`what` is not finite / not a rigid transform".

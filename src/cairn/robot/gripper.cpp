@@ -59,6 +59,8 @@ double max_jaw_angle(const GripperConfig& c) { return c.max_jaw_angle_deg * kDeg
 
 double max_opening(const GripperConfig& c) { return opening_at(c, max_jaw_angle(c)); }
 
+double closing_torque(const GripperConfig& c) { return c.closing_force * c.jaw_length; }
+
 double jaw_angle_for(const GripperConfig& c, double opening) {
   const double s = std::clamp((opening - c.hinge_spacing) / (2.0 * c.jaw_length), -1.0, 1.0);
   return std::clamp(std::asin(s), min_jaw_angle(c), max_jaw_angle(c));

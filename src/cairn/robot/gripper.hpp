@@ -20,8 +20,8 @@
 // The opening (what the grasp plan commands and the wire-draw encoder of the paper's Sec. 6.3
 // reports, converted) is the distance between the two jaws' inner tip edges.
 //
-// Defaults fit 0.5-1 m^3 boulders (0.9-1.5 m across, shortest horizontal extent 0.9-1.3 m on the
-// scenarios' stones): the pivots sit 1.4 m apart, so most stones are held by jaws that converge
+// Defaults fit 0.5-1 m^3 boulders (0.9-1.6 m across their shortest horizontal extent on the
+// scenarios' stones, mostly 1.0-1.2 m): the pivots sit 1.4 m apart, so most stones are held by jaws that converge
 // towards their tips and touch the stone below its widest section, cradling it (diverging jaws
 // touch a rounded stone above it and squeeze it out: with pivots 0.8 m apart the centred grasp
 // held 0 of 7 exp1 stones, with 1.4 m 5 of 14; docs/simulator-physics.md). The tips open to
@@ -78,6 +78,8 @@ double jaw_angle_for(const GripperConfig& config, double opening);
 double min_jaw_angle(const GripperConfig& config);
 double max_jaw_angle(const GripperConfig& config);
 double max_opening(const GripperConfig& config);
+/// Hydraulic torque on each jaw's pivot [N m]: closing_force at the tip.
+double closing_torque(const GripperConfig& config);
 
 /// The hinge frame J of one jaw at jaw angle `angle`, in G.
 Eigen::Isometry3d T_gripper_jaw(const GripperConfig& config, JawSide side, double angle);

@@ -16,7 +16,7 @@ Eigen::Isometry3d translation(double x, double y, double z) {
 }  // namespace
 
 Excavator::Excavator(const ExcavatorConfig& config, const GripperConfig& gripper, const Terrain& terrain)
-    : config_(config), gripper_(gripper), model_(make_excavator_model(gripper)) {
+    : config_(config), gripper_(gripper), model_((validate(gripper), make_excavator_model(gripper))) {
   T_world_base0_.linear() = Eigen::AngleAxisd(config.base_yaw_deg * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   T_world_base0_.translation() =
       Eigen::Vector3d(config.base_x, config.base_y, terrain.height(config.base_x, config.base_y) + config.base_height);

@@ -27,7 +27,7 @@ using Eigen::Vector3d;
 constexpr double kGravity = 9.81;           // [m/s^2], as in the generated model
 constexpr double kCloseMinTime = 0.1;       // [s] closing runs at least this long
 constexpr double kJawStopHold = 0.05;       // [s] jaws must stay stopped this long
-constexpr double kEmptyOpening = 0.02;      // [m] jaws this close together hold nothing
+constexpr double kEmptyMargin = 0.01;       // [m] jaws this close to fully closed hold nothing
 constexpr double kContactWindow = 0.05;     // [s] a jaw touches what it touched this recently
 constexpr double kExtentAngleStep = 0.5;    // [deg] search step of the shortest extent
 constexpr int kJawFootprintSamples = 9;     // per axis, terrain samples under the jaws' sweep
@@ -172,9 +172,13 @@ constexpr double kPathSample = 0.25;  // [m]
 /// box between the jaws stands for whatever they grasp.
 std::vector<Eigen::AlignedBox3d> swept_boxes(const GraspPlan& plan, const GripperConfig& gripper,
                                              const Site& site, const Isometry3d& pre_grasp) {
+  // The gripper at the plan's opening and, closing from it, with its tips at their deepest
+  // (jaws parallel) and fully closed.
   std::vector<Vector3d> gripper_points;
-  for (const ConvexPart& p : gripper_parts(gripper, plan.opening)) {
-    gripper_points.insert(gripper_points.end(), p.vertices.begin(), p.vertices.end());
+  for (const double opening : {plan.opening, std::min(plan.opening, gripper.hinge_spacing), gripper.closed_gap}) {
+    for (const ConvexPart& p : gripper_parts(gripper, opening)) {
+      gripper_points.insert(gripper_points.end(), p.vertices.begin(), p.vertices.end());
+    }
   }
   const Isometry3d lifted = translated_world(plan.T_world_gripper, plan.lift_height * Vector3d::UnitZ());
   const Isometry3d above_place = translated_world(plan.T_world_place, plan.lift_height * Vector3d::UnitZ());
@@ -230,7 +234,7 @@ class Trial {
  public:
   Trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
         const PhysicsConfig& config)
-      : plan_(plan), c_(config), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
+      : plan_(plan), c_(config), closed_gap_(gripper.closed_gap), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
         scene_(site, spec(site, plan, gripper, config, pre_grasp_), gripper, config) {
     target_ = pre_grasp_;
     scene_.set_gripper_target(target_);
@@ -473,7 +477,7 @@ class Trial {
       for (int k : v) s += (s.empty() ? "" : ", ") + detail::entity_name(k);
       return s.empty() ? std::string("nothing") : s;
     };
-    if (left.empty() || right.empty() || r_.grasp_opening < kEmptyOpening) {
+    if (left.empty() || right.empty() || r_.grasp_opening < closed_gap_ + kEmptyMargin) {
       fail(reason::kEmptyGrasp, "close: nothing between the jaws (jaw_left touches " + names(left) +
                                     ", jaw_right touches " + names(right) + ")");
       return false;
@@ -574,6 +578,7 @@ class Trial {
 
   const GraspPlan& plan_;
   const PhysicsConfig& c_;
+  double closed_gap_ = 0.0;
   Isometry3d pre_grasp_;
   Scene scene_;
   Isometry3d target_ = Isometry3d::Identity();
@@ -890,7 +895,8 @@ double ground_under_jaws(const Stone& stone, const Vector2d& dir, double half_u,
 
 /// Smallest jaw angle whose open jaws clear every vertex of the stone by `margin` (the inner
 /// face at depth x below the palm lies hinge_spacing/2 + x tan(angle) off the closing plane's
-/// centre line), for the palm at height palm_z; clamped to the gripper's range.
+/// centre line), for the palm at height palm_z; clamped to the gripper's range. Conservative:
+/// vertices beyond the tips or outside the jaws' height count too.
 double clearing_jaw_angle(const Stone& stone, const Vector2d& dir, double palm_z, double margin,
                           const GripperConfig& gripper) {
   const Vector2d c = stone.centroid.head<2>();
@@ -925,12 +931,13 @@ GraspPlan centred_antipodal_grasp(const Stone& stone, const GripperConfig& gripp
   // from an open angle, the tips swing down to their deepest (jaw_length, jaws parallel): they
   // must clear the ground there. The jaws open just enough to clear the stone (capped); a
   // wider opening widens their footprint, so the ground is checked once more.
-  const double top = stone.bounds.max().z() + o.palm_clearance;
-  double half_u = reach + o.opening_margin + gripper.jaw_thickness;
-  double palm_z = std::max(top, ground_under_jaws(stone, dir, half_u, gripper, terrain) + o.tip_clearance + gripper.jaw_length);
+  const auto lowest_palm = [&](double half_u) {
+    return ground_under_jaws(stone, dir, half_u, gripper, terrain) + o.tip_clearance + gripper.jaw_length;
+  };
+  const double half_u = reach + o.opening_margin + gripper.jaw_thickness;
+  double palm_z = std::max(stone.bounds.max().z() + o.palm_clearance, lowest_palm(half_u));
   plan.opening = opening_at(gripper, clearing_jaw_angle(stone, dir, palm_z, o.opening_margin, gripper));
-  half_u = std::max(half_u, 0.5 * plan.opening + gripper.jaw_thickness);
-  palm_z = std::max(palm_z, ground_under_jaws(stone, dir, half_u, gripper, terrain) + o.tip_clearance + gripper.jaw_length);
+  palm_z = std::max(palm_z, lowest_palm(std::max(half_u, 0.5 * plan.opening + gripper.jaw_thickness)));
   plan.opening = opening_at(gripper, clearing_jaw_angle(stone, dir, palm_z, o.opening_margin, gripper));
   plan.T_world_gripper.linear() = R;
   plan.T_world_gripper.translation() = Vector3d(c.x(), c.y(), palm_z);

@@ -349,8 +349,7 @@ std::string jaw_pads(const ConvexPart& jaw, const PhysicsConfig& c) {
 /// full closing force.
 std::string mjcf_gripper(const SceneSpec& spec, const GripperConfig& g, const PhysicsConfig& c) {
   const double angle0 = jaw_angle_for(g, spec.opening);
-  const double torque = g.closing_force * g.jaw_length;
-  const double damping = torque * g.jaw_length / c.jaw_speed;  // torque / (tip speed / length)
+  const double damping = closing_torque(g) * g.jaw_length / c.jaw_speed;  // torque / (tip speed / length)
   const std::string pose = "pos=\"" + vec_attr(spec.T_world_gripper.translation()) + "\" quat=\"" +
                            quat_attr(spec.T_world_gripper.linear()) + "\"";
   const ConvexPart palm = palm_part(g);
@@ -376,7 +375,7 @@ std::string mjcf_gripper(const SceneSpec& spec, const GripperConfig& g, const Ph
 /// The arm's weld, the jaws' mechanical coupling (one DoF: equal angles) and the hydraulic
 /// actuator acting on both (MuJoCo's palm-jaw contacts are parent-child, filtered by default).
 std::string mjcf_gripper_constraints(const GripperConfig& g, const PhysicsConfig& c) {
-  const double torque = g.closing_force * g.jaw_length;
+  const double torque = closing_torque(g);
   std::ostringstream x;
   x.precision(17);
   x << "<contact><exclude body1=\"jaw_left\" body2=\"jaw_right\"/></contact>\n"
@@ -459,30 +458,34 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
     mj_deleteModel(m_);
     throw InputError("physics: MuJoCo could not allocate its data");
   }
-  // Seats under the stones' hulls at their placement in the Site.
-  if (carve) {
-    for (std::size_t k = 0; k < n; ++k) {
-      if (!free[k]) continue;
-      const std::string name = "stone" + std::to_string(k);
-      carve_seats(hf, hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), bodies.props[k].centroid),
-                  config.seat_clearance);
+  try {  // the destructor does not run for a constructor that throws
+    if (carve) {  // seats under the stones' hulls at their placement in the Site
+      for (std::size_t k = 0; k < n; ++k) {
+        if (!free[k]) continue;
+        const std::string name = "stone" + std::to_string(k);
+        carve_seats(hf, hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), bodies.props[k].centroid),
+                    config.seat_clearance);
+      }
     }
+    write_height_field(m_, hf, range);
+    for (std::size_t k = 0; k < n; ++k) {
+      stone_mass_.push_back(config.rock_density * bodies.props[k].volume);
+      centroid_.push_back(bodies.props[k].centroid);
+    }
+    stone_radius_ = bodies.radius;
+    index_entities(free, spec.with_gripper);
+    if (spec.with_gripper) {
+      closing_torque_ = closing_torque(gripper);
+      gripper_weight_ = m_->body_subtreemass[gripper_body_] * -m_->opt.gravity[2];
+    }
+    gripper_ = gripper;
+    at_rest_ = site.at_rest;
+    mj_forward(m_, d_);
+  } catch (...) {
+    mj_deleteData(d_);
+    mj_deleteModel(m_);
+    throw;
   }
-  write_height_field(m_, hf, range);
-  for (std::size_t k = 0; k < n; ++k) {
-    stone_mass_.push_back(config.rock_density * bodies.props[k].volume);
-    centroid_.push_back(bodies.props[k].centroid);
-  }
-  stone_radius_ = bodies.radius;
-  index_entities(free, spec.with_gripper);
-  if (spec.with_gripper) {
-    jaw_length_ = gripper.jaw_length;
-    closing_torque_ = gripper.closing_force * gripper.jaw_length;
-    gripper_weight_ = m_->body_subtreemass[gripper_body_] * -m_->opt.gravity[2];
-  }
-  gripper_ = gripper;
-  at_rest_ = site.at_rest;
-  mj_forward(m_, d_);
 }
 
 void Scene::index_entities(const std::vector<bool>& free, bool with_gripper) {
@@ -608,7 +611,7 @@ double Scene::jaw_angle() const { return 0.5 * (d_->qpos[jaw_qpos_[0]] + d_->qpo
 double Scene::opening() const { return opening_at(gripper_, jaw_angle()); }
 
 double Scene::jaw_speed() const {
-  return jaw_length_ * std::max(std::abs(d_->qvel[jaw_dof_[0]]), std::abs(d_->qvel[jaw_dof_[1]]));
+  return gripper_.jaw_length * std::max(std::abs(d_->qvel[jaw_dof_[0]]), std::abs(d_->qvel[jaw_dof_[1]]));
 }
 
 double Scene::arm_load() const {
