@@ -160,6 +160,13 @@ SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed) {
   return SimulatedWorld{std::move(site), std::move(excavator), std::move(scene)};
 }
 
+GraspTrialResult execute_grasp(SimulatedWorld& world, const GraspPlan& plan, const SimulationConfig& config) {
+  GraspTrialResult r = run_grasp_trial(world.site, plan, config.gripper, config.physics);
+  apply_stone_poses(world.site, r.stone_poses);
+  world.scene = make_world_scene(world.site, config.terrain_mesh_spacing);
+  return r;
+}
+
 std::vector<SweepSchedule> sweep_schedule(const LidarConfig& lidar, double duration, std::uint64_t seed) {
   validate(lidar);
   if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("sweep_schedule: duration must be positive");

@@ -104,6 +104,14 @@ struct SimulatedWorld {
 };
 SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed);
 
+/// Executes a grasp plan in the physics (run_grasp_trial with config.gripper and
+/// config.physics) on the world's site, then moves the world to where the physics left it: the
+/// site's stones (apply_stone_poses) and the ray-cast scene, so the next sweeps, truth snapshots
+/// and trials see the moved stones. The first step of issue #15's persistent world: the arm
+/// still sits in its parking pose for the sensors, and the plan is executed at its map pose
+/// (no state-estimate offset yet). Throws as run_grasp_trial.
+GraspTrialResult execute_grasp(SimulatedWorld& world, const GraspPlan& plan, const SimulationConfig& config);
+
 /// The sweeps of both sensors in [0, duration): H starts at a random phase, V at another one (the
 /// sensors are not synchronised). Returned in order of start time.
 struct SweepSchedule {
