@@ -10,6 +10,13 @@
 
 namespace cairn {
 
+/// The rigid transform that only translates by (x, y, z).
+inline Eigen::Isometry3d pure_translation(double x, double y, double z) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
+
 /// p ↦ scale · R · p + t
 struct Similarity {
   double scale = 1.0;

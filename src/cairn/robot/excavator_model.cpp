@@ -2,6 +2,8 @@
 
 #include <numbers>
 
+#include "cairn/core/transform.hpp"
+
 namespace cairn {
 
 namespace {
@@ -16,11 +18,6 @@ constexpr double kBoomLength = 4.5, kBoomWidth = 0.5, kBoomHeight = 0.6;
 constexpr double kStickLength = 2.8, kStickWidth = 0.4, kStickHeight = 0.45;
 constexpr double kRotatorLength = 0.3, kRotatorRadius = 0.2;
 
-Eigen::Isometry3d translation(double x, double y, double z) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = Eigen::Vector3d(x, y, z);
-  return T;
-}
 
 /// A gripper part (a box) as a link shape.
 Shape part_shape(const ConvexPart& p) {
@@ -33,7 +30,7 @@ Shape part_shape(const ConvexPart& p) {
 
 Shape box(std::string name, const Eigen::Vector3d& centre, const Eigen::Vector3d& size) {
   return Shape{.kind = Shape::Kind::Box, .name = std::move(name),
-               .T_link_shape = translation(centre.x(), centre.y(), centre.z()), .size = size};
+               .T_link_shape = pure_translation(centre.x(), centre.y(), centre.z()), .size = size};
 }
 }  // namespace
 
@@ -60,23 +57,23 @@ RobotModel make_excavator_model(const GripperConfig& g) {
                              {kCounterweightLength, kCabinWidth, kCounterweightHeight}));
   m.links.push_back(std::move(cabin));
   Link boom{.name = "boom", .parent = 1, .joint = Link::Joint::Revolute, .joint_name = joints::kBoom,
-            .T_parent_joint = translation(kBoomPivotX, 0, kBoomPivotZ), .axis = minus_y};
+            .T_parent_joint = pure_translation(kBoomPivotX, 0, kBoomPivotZ), .axis = minus_y};
   boom.shapes.push_back(box("boom", {0.5 * kBoomLength, 0, 0}, {kBoomLength, kBoomWidth, kBoomHeight}));
   m.links.push_back(std::move(boom));
   Link stick{.name = "stick", .parent = 2, .joint = Link::Joint::Revolute, .joint_name = joints::kStick,
-             .T_parent_joint = translation(kBoomLength, 0, 0), .axis = minus_y};
+             .T_parent_joint = pure_translation(kBoomLength, 0, 0), .axis = minus_y};
   stick.shapes.push_back(box("stick", {0.5 * kStickLength, 0, 0}, {kStickLength, kStickWidth, kStickHeight}));
   m.links.push_back(std::move(stick));
   Link tilt{.name = "rotator", .parent = 3, .joint = Link::Joint::Revolute, .joint_name = joints::kGripperPitch,
-            .T_parent_joint = translation(kStickLength, 0, 0), .axis = minus_y};
-  Shape rotator{.kind = Shape::Kind::Cylinder, .name = "rotator", .T_link_shape = translation(0.5 * kRotatorLength, 0, 0),
+            .T_parent_joint = pure_translation(kStickLength, 0, 0), .axis = minus_y};
+  Shape rotator{.kind = Shape::Kind::Cylinder, .name = "rotator", .T_link_shape = pure_translation(0.5 * kRotatorLength, 0, 0),
                 .size = {2 * kRotatorRadius, 2 * kRotatorRadius, kRotatorLength}};
   rotator.T_link_shape.linear() = Eigen::AngleAxisd(0.5 * std::numbers::pi, Eigen::Vector3d::UnitY()).toRotationMatrix();
   tilt.shapes.push_back(rotator);
   m.links.push_back(std::move(tilt));
   // Gripper frame G: origin at the palm's front face, x = approach; the jaws pivot on it.
   Link gripper{.name = "gripper", .parent = 4, .joint = Link::Joint::Revolute, .joint_name = joints::kGripperRoll,
-               .T_parent_joint = translation(kRotatorLength + g.palm_depth, 0, 0), .axis = Eigen::Vector3d::UnitX()};
+               .T_parent_joint = pure_translation(kRotatorLength + g.palm_depth, 0, 0), .axis = Eigen::Vector3d::UnitX()};
   gripper.shapes.push_back(part_shape(palm_part(g)));
   m.links.push_back(std::move(gripper));
   for (const JawSide side : {JawSide::Left, JawSide::Right}) {

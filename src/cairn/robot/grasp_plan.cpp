@@ -27,10 +27,11 @@ Eigen::Matrix<double, N, 1> vector(const nlohmann::json& j, const std::string& w
   return v;
 }
 
-nlohmann::json rounded(double v) { return std::round(v * 1e9) / 1e9; }
 
 
 }  // namespace
+
+nlohmann::json rounded_json(double v) { return std::round(v * 1e9) / 1e9; }
 
 void require_rigid_pose(const Isometry3d& T, const std::string& what) {
   if (!T.matrix().allFinite()) throw InputError(what + " is not finite");
@@ -44,7 +45,7 @@ nlohmann::json pose_to_json(const Isometry3d& T) {
   nlohmann::json rows = nlohmann::json::array();
   for (int r = 0; r < 4; ++r) {
     nlohmann::json row = nlohmann::json::array();
-    for (int c = 0; c < 4; ++c) row.push_back(rounded(T.matrix()(r, c)));
+    for (int c = 0; c < 4; ++c) row.push_back(rounded_json(T.matrix()(r, c)));
     rows.push_back(row);
   }
   return rows;

@@ -41,6 +41,9 @@ void validate(const GraspPlan& plan, const GripperConfig& gripper);
 /// Throws InputError "`what` is not finite / not a rigid transform".
 void require_rigid_pose(const Eigen::Isometry3d& T, const std::string& what);
 
+/// A number for JSON output, rounded to 1e-9 (the text stays stable across platforms).
+nlohmann::json rounded_json(double v);
+
 nlohmann::json pose_to_json(const Eigen::Isometry3d& T);
 /// Throws InputError naming `what` on malformed input or a non-rigid rotation.
 Eigen::Isometry3d pose_from_json(const nlohmann::json& j, const std::string& what);

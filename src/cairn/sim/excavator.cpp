@@ -3,16 +3,13 @@
 #include <cmath>
 #include <numbers>
 
+#include "cairn/core/transform.hpp"
+
 namespace cairn::sim {
 
 namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-Eigen::Isometry3d translation(double x, double y, double z) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = Eigen::Vector3d(x, y, z);
-  return T;
-}
 }  // namespace
 
 Excavator::Excavator(const ExcavatorConfig& config, const GripperConfig& gripper, const Terrain& terrain)
@@ -59,13 +56,13 @@ Eigen::Isometry3d Excavator::T_world_cabin(double t) const {
 }
 
 Eigen::Isometry3d Excavator::T_cabin_H() const {
-  return translation(config_.lidar_x, config_.lidar_h_y, config_.lidar_z);
+  return pure_translation(config_.lidar_x, config_.lidar_h_y, config_.lidar_z);
 }
 
 Eigen::Isometry3d Excavator::T_cabin_V() const {
   // Spin axis (sensor z) along the cabin's -y, pointing away from the cabin: the scan fan is the
   // cabin's x-z plane, and the upward-tilted beams look outwards, not across the roof.
-  Eigen::Isometry3d T = translation(config_.lidar_x, config_.lidar_v_y, config_.lidar_z);
+  Eigen::Isometry3d T = pure_translation(config_.lidar_x, config_.lidar_v_y, config_.lidar_z);
   T.linear() = Eigen::AngleAxisd(0.5 * std::numbers::pi, Eigen::Vector3d::UnitX()).toRotationMatrix();
   return T;
 }

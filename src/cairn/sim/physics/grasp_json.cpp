@@ -7,8 +7,6 @@ namespace {
 
 using Eigen::Isometry3d;
 
-nlohmann::json rounded(double v) { return std::round(v * 1e9) / 1e9; }
-
 }  // namespace
 
 nlohmann::json to_json(const GraspTrialResult& r) {
@@ -17,38 +15,38 @@ nlohmann::json to_json(const GraspTrialResult& r) {
     const Isometry3d& T = r.stone_poses[k];
     poses.push_back({{"stone", k},
                      {"T_world_stone", pose_to_json(T)},
-                     {"translation", rounded(T.translation().norm())},
-                     {"rotation", rounded(Eigen::AngleAxisd(T.linear()).angle())}});
+                     {"translation", rounded_json(T.translation().norm())},
+                     {"rotation", rounded_json(Eigen::AngleAxisd(T.linear()).angle())}});
   }
   nlohmann::json phases = nlohmann::json::array();
-  for (const PhaseTiming& p : r.phases) phases.push_back({{"name", p.name}, {"start", rounded(p.start)}, {"end", rounded(p.end)}, {"wall", p.wall}});
+  for (const PhaseTiming& p : r.phases) phases.push_back({{"name", p.name}, {"start", rounded_json(p.start)}, {"end", rounded_json(p.end)}, {"wall", p.wall}});
   nlohmann::json initial = nlohmann::json::array();
   for (const Isometry3d& T : r.initial_stone_poses) initial.push_back(pose_to_json(T));
   nlohmann::json trace = {{"time", nlohmann::json::array()}, {"jaw_angle", nlohmann::json::array()},
                           {"opening", nlohmann::json::array()}, {"arm_load", nlohmann::json::array()}};
   for (const TraceSample& t : r.trace) {
-    trace["time"].push_back(rounded(t.time));
-    trace["jaw_angle"].push_back(rounded(t.jaw_angle));
-    trace["opening"].push_back(rounded(t.opening));
+    trace["time"].push_back(rounded_json(t.time));
+    trace["jaw_angle"].push_back(rounded_json(t.jaw_angle));
+    trace["opening"].push_back(rounded_json(t.opening));
     trace["arm_load"].push_back(std::round(t.arm_load));
   }
   return {{"success", r.success},
           {"failure_reasons", r.failure_reasons},
           {"message", r.message},
           {"grasped_stone", r.grasped_stone},
-          {"grasp_opening", rounded(r.grasp_opening)},
-          {"slip_distance", rounded(r.slip_distance)},
-          {"slip_angle", rounded(r.slip_angle)},
-          {"swing_in", rounded(r.swing_in)},
-          {"jaw_travel", rounded(r.jaw_travel)},
-          {"place_error", rounded(r.place_error)},
+          {"grasp_opening", rounded_json(r.grasp_opening)},
+          {"slip_distance", rounded_json(r.slip_distance)},
+          {"slip_angle", rounded_json(r.slip_angle)},
+          {"swing_in", rounded_json(r.swing_in)},
+          {"jaw_travel", rounded_json(r.jaw_travel)},
+          {"place_error", rounded_json(r.place_error)},
           {"settled", r.settled},
           {"stone_poses", poses},
-          {"initial_settle", {{"stone_poses", initial}, {"max_speed", rounded(r.initial_max_speed)}}},
+          {"initial_settle", {{"stone_poses", initial}, {"max_speed", rounded_json(r.initial_max_speed)}}},
           {"free_stones", r.free_stones},
           {"trace", trace},
           {"phases", phases},
-          {"sim_time", rounded(r.sim_time)},
+          {"sim_time", rounded_json(r.sim_time)},
           {"wall_time", r.wall_time}};
 }
 
@@ -58,10 +56,10 @@ nlohmann::json to_json(const SiteSettleResult& r) {
   return {{"settled", r.settled},
           {"islands", r.islands},
           {"rounds", r.rounds},
-          {"max_displacement", rounded(r.max_displacement)},
-          {"max_rotation", rounded(r.max_rotation)},
+          {"max_displacement", rounded_json(r.max_displacement)},
+          {"max_rotation", rounded_json(r.max_rotation)},
           {"stone_poses", poses},
-          {"sim_time", rounded(r.sim_time)},
+          {"sim_time", rounded_json(r.sim_time)},
           {"wall_time", r.wall_time}};
 }
 
@@ -69,9 +67,9 @@ nlohmann::json to_json(const SettleResult& r) {
   nlohmann::json poses = nlohmann::json::array();
   for (const Isometry3d& T : r.stone_poses) poses.push_back(pose_to_json(T));
   return {{"settled", r.settled},
-          {"max_speed", rounded(r.max_speed)},
+          {"max_speed", rounded_json(r.max_speed)},
           {"stone_poses", poses},
-          {"sim_time", rounded(r.sim_time)},
+          {"sim_time", rounded_json(r.sim_time)},
           {"wall_time", r.wall_time}};
 }
 
