@@ -475,7 +475,6 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
     stone_radius_ = bodies.radius;
     index_entities(free, spec.with_gripper);
     if (spec.with_gripper) {
-      closing_torque_ = closing_torque(gripper);
       gripper_weight_ = m_->body_subtreemass[gripper_body_] * -m_->opt.gravity[2];
     }
     gripper_ = gripper;
@@ -601,7 +600,7 @@ void Scene::set_gripper_target(const Isometry3d& T) {
 }
 
 void Scene::set_jaw_command(double u) {
-  const double torque = -std::clamp(u, -1.0, 1.0) * closing_torque_;  // a positive angle opens
+  const double torque = -std::clamp(u, -1.0, 1.0) * closing_torque(gripper_);  // a positive angle opens
   d_->ctrl[0] = torque;
   d_->ctrl[1] = torque;
 }

@@ -111,7 +111,7 @@ class Scene {
   void index_entities(const std::vector<bool>& free, bool with_gripper);
 
   GripperConfig gripper_;
-  double closing_torque_ = 0.0, gripper_weight_ = 0.0;
+  double gripper_weight_ = 0.0;
   bool at_rest_ = false;  // Site::at_rest: no seats, no gentle start
   int gripper_body_ = -1, mocap_ = -1, jaw_qpos_[2] = {-1, -1}, jaw_dof_[2] = {-1, -1};
 };
