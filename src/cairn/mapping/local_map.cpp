@@ -96,6 +96,16 @@ std::size_t LocalMap::remove_sphere(const Vec3d& center, double radius) {
   return filter([&](const Eigen::Vector3d& c) { return (c - center).squaredNorm() > radius * radius; });
 }
 
+std::size_t LocalMap::apply(const MapEdit& edit) {
+  edit.validate();
+  if (edit.kind == MapEdit::Kind::insert) {
+    insert(edit.points);
+    return 0;
+  }
+  const MapEditRegion region(edit);
+  return filter([&](const Eigen::Vector3d& c) { return !region.removes(c); });
+}
+
 void LocalMap::clear() {
   voxels_.clear();
   index_keys_.clear();

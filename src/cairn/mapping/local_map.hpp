@@ -10,6 +10,7 @@
 
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/mapping/config.hpp"
+#include "cairn/mapping/map_edit.hpp"
 
 namespace cairn {
 
@@ -35,6 +36,9 @@ class LocalMap {
   std::size_t crop(const Vec3d& center);
   /// Removes every voxel whose centroid lies within `radius` of `center`; returns how many.
   std::size_t remove_sphere(const Vec3d& center, double radius);
+  /// Applies an edit (removes the voxels whose centroid it removes, or inserts its points);
+  /// returns the number of voxels removed.
+  std::size_t apply(const MapEdit& edit);
   void clear();
 
   /// One point per voxel with at least n_min points, at the centroid (world = origin + point),

@@ -358,9 +358,7 @@ void Mapper::rebuild_map(bool final_crop) {
   auto apply_edits = [&](std::size_t after) {
     for (const Edit& e : edits_) {
       if (e.after_node != after) continue;
-      const Eigen::Isometry3d D = edit_motion(e);
-      if (e.sphere) map_.remove_sphere(D * e.sphere->first, e.sphere->second);
-      else map_.insert(e.points.points, D * Eigen::Translation3d(e.points.origin));
+      map_.apply(e.edit.transformed(edit_motion(e)));
     }
   };
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -403,18 +401,20 @@ void Mapper::record_edit(Edit e) {
 }
 
 std::size_t Mapper::remove_sphere(const Vec3d& center, double radius) {
-  if (!center.allFinite() || !std::isfinite(radius) || radius < 0)
-    throw InputError("mapping: remove_sphere needs a finite centre and radius >= 0");
-  sync_background(true);
-  record_edit({.sphere = std::make_pair(center, radius)});
-  return map_.remove_sphere(center, radius);
+  return apply_edit(MapEdit::sphere(center, radius));
 }
 
-void Mapper::insert(const PointCloud& points) {
-  points.check_finite("mapping: inserted points");
+void Mapper::insert(const PointCloud& points) { (void)apply_edit(MapEdit::add(points)); }
+
+std::size_t Mapper::apply_edit(const MapEdit& edit) {
+  try {
+    edit.validate();
+  } catch (const InputError& e) {
+    throw InputError(std::string("mapping: ") + e.what());
+  }
   sync_background(true);
-  record_edit({.sphere = std::nullopt, .points = points});
-  map_.insert(points);
+  record_edit({.edit = edit});
+  return map_.apply(edit);
 }
 
 std::vector<StampedPose> Mapper::trajectory() const {

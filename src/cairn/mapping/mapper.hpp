@@ -96,6 +96,9 @@ class Mapper {
   std::size_t remove_sphere(const Vec3d& center, double radius);
   /// Inserts world points (cloud.origin + point).
   void insert(const PointCloud& points);
+  /// Applies any map edit (e.g. an object's own voxels removed, Sec. 4.5); returns the number of
+  /// voxels removed. Throws InputError on an invalid edit.
+  std::size_t apply_edit(const MapEdit& edit);
 
  private:
   struct Pending {
@@ -120,8 +123,7 @@ class Mapper {
   /// T_world_anchor): a rebuild moves it with that node, as the scans around it move.
   struct Edit {
     std::size_t after_node = 0;
-    std::optional<std::pair<Vec3d, double>> sphere;
-    PointCloud points;
+    MapEdit edit;
     Eigen::Isometry3d T_world_anchor = Eigen::Isometry3d::Identity();
   };
   /// The edit's anchor-node motion since it was made (identity before the first node).

@@ -1,0 +1,221 @@
+#include "cairn/objects/association.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <numbers>
+#include <set>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/kdtree.hpp"
+#include "cairn/core/transform.hpp"
+#include "cairn/registration/icp.hpp"
+
+namespace cairn {
+namespace {
+
+/// A cloud's points relative to `o` (the association's working frame).
+std::vector<Vec3f> relative_to(const PointCloud& c, const Vec3d& o) {
+  std::vector<Vec3f> out(c.size());
+  for (std::size_t i = 0; i < c.size(); ++i) out[i] = (c.world(i) - o).cast<float>();
+  return out;
+}
+
+std::size_t count_near(const std::vector<Vec3f>& points, const KdTree& tree, double distance) {
+  std::size_t n = 0;
+  const float d2 = float(distance * distance);
+  for (const Vec3f& p : points) {
+    float sq = 0.0f;
+    (void)tree.nearest(p, &sq);
+    if (sq <= d2) ++n;
+  }
+  return n;
+}
+
+struct Entity {  // an object or a segment in the working frame
+  std::vector<Vec3f> points;
+  Vec3f centroid = Vec3f::Zero();
+  float radius = 0.0f;
+  std::unique_ptr<KdTree> tree;
+  void prepare(std::vector<Vec3f> p) {
+    points = std::move(p);
+    centroid = cairn::centroid(points);
+    for (const Vec3f& q : points) radius = std::max(radius, (q - centroid).norm());
+    tree = std::make_unique<KdTree>(points);
+  }
+};
+
+struct Fit {
+  double fitness = 0.0, rmse = 0.0;
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();  // world frame, moves the model
+};
+
+/// ICP of the segment onto the object's model from yaw_seeds starting yaws; the best fit.
+Fit fit_segment_to_model(const Entity& seg, const Entity& model, const Vec3d& o, const AssociationConfig& config) {
+  const Vec3f cm = model.centroid;
+  std::vector<Vec3f> target_pts(model.points.size()), source(seg.points.size());
+  for (std::size_t i = 0; i < model.points.size(); ++i) target_pts[i] = model.points[i] - cm;
+  for (std::size_t i = 0; i < seg.points.size(); ++i) source[i] = seg.points[i] - seg.centroid;
+  const IcpTarget target(std::move(target_pts), NormalConfig{.k = 20});
+  IcpConfig icp;
+  Fit best;
+  for (int k = 0; k < config.yaw_seeds; ++k) {
+    // T maps the segment (centred at its centroid) into the model's frame (centred at cm).
+    Eigen::Isometry3d T(Eigen::AngleAxisd(2.0 * std::numbers::pi * k / config.yaw_seeds, Eigen::Vector3d::UnitZ()));
+    // Coarse: the centroids of a partial view and of the whole model differ by up to ~radius/2.
+    const double coarse = std::max(4.0 * config.overlap_distance, double(model.radius) / 2.0);
+    for (double d : {coarse, config.overlap_distance}) {
+      icp.max_correspondence_distance = d;
+      const IcpResult r = register_icp(source, target, T, icp);
+      if (r.T_target_source.matrix().allFinite()) T = r.T_target_source;
+    }
+    const IcpResult e = evaluate_alignment(source, target, T, config.overlap_distance);
+    if (e.fitness > best.fitness || (e.fitness == best.fitness && e.rmse < best.rmse)) {
+      best.fitness = e.fitness;
+      best.rmse = e.rmse;
+      // world: model = o + cm + T (seg - o - cs)  ⇒  the model moves by M = (T_seg-frame ∘ T^-1 ∘ model-frame).
+      const Eigen::Vector3d wm = o + cm.cast<double>(), ws = o + seg.centroid.cast<double>();
+      best.motion = Eigen::Translation3d(ws) * T.inverse() * Eigen::Translation3d(-wm);
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+Association associate(const std::vector<PointCloud>& segments, const std::vector<ObjectRecord>& objects,
+                      const PointCloud& map, const AssociationConfig& config) {
+  map.check_finite("association: map");
+  const Vec3d o = map.origin;
+  Association a;
+  std::vector<Entity> segs(segments.size());
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    segments[i].check_finite("association: segment " + std::to_string(i));
+    segs[i].prepare(relative_to(segments[i], o));
+  }
+  std::vector<const ObjectRecord*> objs;
+  std::vector<Entity> models;
+  for (const ObjectRecord& r : objects) {
+    if (r.status == ObjectStatus::grasped || r.cloud.empty()) continue;
+    objs.push_back(&r);
+    models.emplace_back().prepare(relative_to(r.cloud, o));
+  }
+  const std::unique_ptr<KdTree> map_tree = map.empty() ? nullptr : std::make_unique<KdTree>(map.points);
+
+  // 1. Support and view.
+  std::vector<bool> present(objs.size(), false), in_view(objs.size(), false);
+  for (std::size_t j = 0; j < objs.size(); ++j) {
+    if (!map_tree) continue;
+    const double support = double(count_near(models[j].points, *map_tree, config.overlap_distance)) /
+                           double(models[j].points.size());
+    present[j] = support >= config.min_support;
+    std::size_t near = 0;
+    map_tree->for_each_in_radius((objs[j]->centroid - o).cast<float>(), float(config.in_view_radius),
+                                 [&](std::uint32_t, float) { ++near; });
+    in_view[j] = near >= std::size_t(config.in_view_min_points);
+  }
+  // 2. Overlap: each segment to the object sharing most of its points.
+  std::vector<bool> matched_obj(objs.size(), false);
+  std::vector<std::size_t> unmatched;
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    double best = 0.0;
+    std::size_t best_j = objs.size();
+    for (std::size_t j = 0; j < objs.size(); ++j) {
+      if ((segs[i].centroid - models[j].centroid).norm() > segs[i].radius + models[j].radius) continue;
+      const double f = double(count_near(segs[i].points, *models[j].tree, config.overlap_distance)) /
+                       double(segs[i].points.size());
+      if (f > best) best = f, best_j = j;
+    }
+    if (best >= config.min_overlap) {
+      a.matched.emplace_back(i, objs[best_j]->id);
+      matched_obj[best_j] = present[best_j] = true;
+    } else {
+      unmatched.push_back(i);
+    }
+  }
+  for (std::size_t j = 0; j < objs.size(); ++j)
+    if (present[j]) a.present.push_back(objs[j]->id);
+  // 3. Moved: unmatched segments tried as objects that are no longer where they were.
+  struct Candidate {
+    std::size_t seg, obj;
+    Fit fit;
+  };
+  std::vector<Candidate> fits;
+  for (std::size_t i : unmatched) {
+    if (segs[i].points.size() < std::size_t(config.min_segment_points)) continue;
+    for (std::size_t j = 0; j < objs.size(); ++j) {
+      if (present[j]) continue;
+      const bool lost = objs[j]->status == ObjectStatus::lost;
+      if (!lost && (segs[i].centroid - models[j].centroid).norm() > config.search_radius) continue;
+      const Fit f = fit_segment_to_model(segs[i], models[j], o, config);
+      if (f.fitness >= config.min_fitness && f.rmse <= config.max_rmse) fits.push_back({i, j, f});
+    }
+  }
+  std::sort(fits.begin(), fits.end(), [](const Candidate& x, const Candidate& y) { return x.fit.fitness > y.fit.fitness; });
+  std::set<std::size_t> used_seg, used_obj;
+  for (const Candidate& c : fits) {
+    if (used_seg.contains(c.seg) || used_obj.contains(c.obj)) continue;
+    used_seg.insert(c.seg);
+    used_obj.insert(c.obj);
+    a.moved.push_back({.id = objs[c.obj]->id, .segment = c.seg, .motion = c.fit.motion,
+                       .fitness = c.fit.fitness, .rmse = c.fit.rmse});
+  }
+  // 4. New segments; objects gone.
+  for (std::size_t i : unmatched) {
+    if (used_seg.contains(i)) continue;
+    if (segs[i].points.size() < std::size_t(config.min_segment_points)) a.ignored_segments.push_back(i);
+    else a.new_segments.push_back(i);
+  }
+  for (std::size_t j = 0; j < objs.size(); ++j) {
+    if (present[j] || used_obj.contains(j)) continue;
+    if (in_view[j]) a.vanished.push_back(objs[j]->id);
+    else a.out_of_view.push_back(objs[j]->id);
+  }
+  return a;
+}
+
+Operation association_operation(const Association& a, const std::vector<PointCloud>& segments,
+                                const std::vector<ObjectRecord>& objects, double time, const std::string& source) {
+  auto find = [&](std::int64_t id) -> const ObjectRecord& {
+    for (const ObjectRecord& r : objects)
+      if (r.id == id) return r;
+    throw InputError("association: no object " + std::to_string(id));
+  };
+  Operation op{.time = time, .kind = "associate", .changes = {}, .map_edits = {}};
+  auto change = [](std::int64_t id, ObjectStatus s, std::string reason, PoseCause cause) {
+    return ObjectChange{.id = id, .status = s, .reason = std::move(reason), .source = "", .cloud = std::nullopt,
+                        .T_map_gripper_grasp = std::nullopt, .cause = cause,
+                        .transform = Eigen::Isometry3d::Identity()};
+  };
+  for (std::int64_t id : a.present)
+    if (find(id).status == ObjectStatus::lost)
+      op.changes.push_back(change(id, ObjectStatus::on_ground, "seen again at its stored pose", PoseCause::reassociated));
+  for (const Association::Moved& m : a.moved) {
+    const ObjectRecord& r = find(m.id);
+    PointCloud cloud = r.cloud;
+    transform_cloud(cloud, m.motion);
+    char why[160];
+    std::snprintf(why, sizeof(why), "%s: moved %.2f m, turned %.1f deg without a grasp",
+                  r.status == ObjectStatus::lost ? "found again" : "bumped",
+                  (m.motion * r.centroid - r.centroid).norm(), rotation_angle(m.motion.linear()) * 180.0 / std::numbers::pi);
+    ObjectChange c = change(m.id, r.status == ObjectStatus::lost ? ObjectStatus::on_ground : r.status, why,
+                            PoseCause::reassociated);
+    c.cloud = std::move(cloud);
+    c.transform = m.motion;
+    op.changes.push_back(std::move(c));
+  }
+  for (std::int64_t id : a.vanished)
+    if (find(id).status != ObjectStatus::lost)
+      op.changes.push_back(change(id, ObjectStatus::lost,
+                                  "not seen at its pose in the rescan, and no segment fits its model", PoseCause::lost));
+  for (std::size_t i : a.new_segments) {
+    ObjectChange c = change(0, ObjectStatus::on_ground, "", PoseCause::created);
+    c.source = source;
+    c.cloud = segments[i];
+    op.changes.push_back(std::move(c));
+  }
+  return op;
+}
+
+}  // namespace cairn

@@ -1,0 +1,48 @@
+#pragma once
+// Re-segmentation against the object database (Sec. 4.5, extended): which new segment is which
+// stored object. An object is never duplicated and never silently dropped:
+//   1. an object whose points still have map points near them is still there (support);
+//   2. a segment sharing most of its points with an object is that object (overlap);
+//   3. an unmatched segment near an object that is no longer where it was (or that was lost) is
+//      tried as that object moved — ICP of the segment onto the object's model from several yaws
+//      (a neighbour bumped by the gripper, a stone that fell): reassociated with the motion;
+//   4. remaining segments become new objects; remaining objects that are in view but gone are
+//      lost (with the reason); objects out of view stay as they are.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <vector>
+
+#include "cairn/core/point_cloud.hpp"
+#include "cairn/objects/config.hpp"
+#include "cairn/objects/object_db.hpp"
+
+namespace cairn {
+
+struct Association {
+  struct Moved {
+    std::int64_t id = 0;
+    std::size_t segment = 0;
+    Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();  // applied to the object's cloud
+    double fitness = 0.0, rmse = 0.0;
+  };
+  std::vector<std::pair<std::size_t, std::int64_t>> matched;  // (segment, object) where it was
+  std::vector<std::int64_t> present;       // objects still there (support), matched or not
+  std::vector<Moved> moved;                // found elsewhere
+  std::vector<std::size_t> new_segments;   // become new objects
+  std::vector<std::size_t> ignored_segments;  // unmatched and too small
+  std::vector<std::int64_t> vanished;      // in view, gone, not found elsewhere
+  std::vector<std::int64_t> out_of_view;   // not checked
+};
+
+/// Associates the segments of a re-segmentation of `map` (world clouds) with the stored objects
+/// (grasped objects are skipped: they are in the gripper). Throws InputError on non-finite input.
+[[nodiscard]] Association associate(const std::vector<PointCloud>& segments, const std::vector<ObjectRecord>& objects,
+                                    const PointCloud& map, const AssociationConfig& config);
+
+/// The operation that stores an association: new objects (source as given), moved objects with
+/// their motion (cause reassociated), vanished ones lost, lost ones seen again back on the ground.
+[[nodiscard]] Operation association_operation(const Association& a, const std::vector<PointCloud>& segments,
+                                              const std::vector<ObjectRecord>& objects, double time,
+                                              const std::string& source);
+
+}  // namespace cairn

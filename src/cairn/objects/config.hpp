@@ -1,0 +1,88 @@
+#pragma once
+// Parameters of the object database's map updates (Sec. 4.5), Table 3 values as defaults.
+#include <string>
+
+namespace cairn {
+
+/// Which map points a grasp removes (Sec. 4.5).
+struct GraspRemovalConfig {
+  std::string method = "object_voxels";  // "object_voxels" | "sphere" (the paper)
+  double R_obj = 1.0;                    // [m] Table 3: the sphere; the upper bound of object_voxels
+  double distance = 0.05;  // [m] object_voxels: map voxels within this of the object's points
+                           // (≈ res_voxel·√3, the 3 cm voxel's diagonal: the cloud dilated by a voxel)
+  template <class V>
+  void visit(V& v) {
+    v("method", method, "object_voxels (the object's own voxels, bounded by the sphere) or sphere (the paper)");
+    v("R_obj", R_obj, "radius of the removal sphere around the object's centroid [m] (Table 3)");
+    v("distance", distance, "object_voxels: map voxels within this distance of the object's points go [m]");
+  }
+};
+
+/// The ICP that re-aligns a released object's cloud to the rescanned map (Sec. 4.5), and when its
+/// result is believed.
+struct RealignConfig {
+  double crop_margin = 0.3;          // [m] map points within the object's radius + this are used
+  double coarse_distance = 0.25;     // [m] first ICP stage: correspondences up to this
+  double fine_distance = 0.05;       // [m] second stage
+  int max_iterations = 40;           // per stage
+  double inlier_distance = 0.03;     // [m] a model point with a map point this close is seen
+  double min_fitness = 0.35;         // share of model points seen (the hidden bottom is never seen)
+  double max_rmse = 0.02;            // [m] over the inliers
+  double report_translation = 0.15;  // [m] larger corrections are reported (the stone fell or rolled)
+  double report_rotation_deg = 15.0;
+  template <class V>
+  void visit(V& v) {
+    v("crop_margin", crop_margin, "map points within the object's radius plus this are matched [m]");
+    v("coarse_distance", coarse_distance, "first ICP stage: maximum correspondence distance [m]");
+    v("fine_distance", fine_distance, "second ICP stage: maximum correspondence distance [m]");
+    v("max_iterations", max_iterations, "ICP iterations per stage");
+    v("inlier_distance", inlier_distance, "a model point with a map point this close counts as seen [m]");
+    v("min_fitness", min_fitness, "minimum share of model points seen, else the object is lost");
+    v("max_rmse", max_rmse, "maximum RMS distance of the seen points, else the object is lost [m]");
+    v("report_translation", report_translation, "corrections above this are reported as fell/rolled [m]");
+    v("report_rotation_deg", report_rotation_deg, "corrections above this are reported as fell/rolled [deg]");
+  }
+};
+
+/// Re-segmentation: which segment is which object (Sec. 4.5, extended).
+struct AssociationConfig {
+  double overlap_distance = 0.05;   // [m] a segment point this close to an object's points is shared
+  double min_overlap = 0.5;         // share of a segment's points shared with an object to match it
+  double min_support = 0.3;         // share of an object's points with a map point near: still there
+  double search_radius = 3.0;       // [m] a segment this close may be an object that moved
+  double min_fitness = 0.8;         // moved object: share of the segment's points on the model
+  double max_rmse = 0.02;           // [m] moved object: over those points
+  int yaw_seeds = 8;                // ICP starts, yaw steps about the vertical
+  double in_view_radius = 0.5;      // [m] an object with map points this close to its centroid
+  int in_view_min_points = 20;      //     (at least this many) is in view: missing means lost
+  int min_segment_points = 50;      // smaller unmatched segments do not become objects
+  template <class V>
+  void visit(V& v) {
+    v("overlap_distance", overlap_distance, "segment points this close to an object's points are shared [m]");
+    v("min_overlap", min_overlap, "share of a segment's points shared with an object to match it");
+    v("min_support", min_support, "share of an object's points with a map point near it: the object is still there");
+    v("search_radius", search_radius, "an unmatched segment this close may be an object that moved [m]");
+    v("min_fitness", min_fitness, "a moved object: share of the segment's points on the model");
+    v("max_rmse", max_rmse, "a moved object: RMS distance of those points [m]");
+    v("yaw_seeds", yaw_seeds, "ICP starting yaws for a moved object");
+    v("in_view_radius", in_view_radius, "map points this close to an object's centroid put it in view [m]");
+    v("in_view_min_points", in_view_min_points, "at least this many map points put an object in view");
+    v("min_segment_points", min_segment_points, "smaller unmatched segments do not become objects");
+  }
+};
+
+struct ObjectsConfig {
+  GraspRemovalConfig grasp_removal;
+  RealignConfig realign;
+  AssociationConfig association;
+  template <class V>
+  void visit(V& v) {
+    v("grasp_removal", grasp_removal, "map points removed when an object is grasped (Sec. 4.5)");
+    v("realign", realign, "ICP re-alignment of a released object to the rescanned map (Sec. 4.5)");
+    v("association", association, "segments of a re-segmentation matched to stored objects");
+  }
+  /// Throws ConfigError naming the key of a value out of range.
+  void validate() const;
+};
+
+}  // namespace cairn

@@ -1,0 +1,158 @@
+#include "cairn/objects/updates.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/transform.hpp"
+#include "cairn/registration/icp.hpp"
+
+namespace cairn {
+namespace {
+
+void require_finite(const Eigen::Isometry3d& T, const std::string& what) {
+  if (!T.matrix().allFinite()) throw InputError(what + ": the gripper pose is not finite");
+}
+
+std::string object_name(const ObjectRecord& o) { return "object " + std::to_string(o.id); }
+
+/// Largest distance of the object's points from its centroid.
+double object_radius(const ObjectRecord& o) {
+  double r2 = 0.0;
+  for (std::size_t i = 0; i < o.cloud.size(); ++i) r2 = std::max(r2, (o.cloud.world(i) - o.centroid).squaredNorm());
+  return std::sqrt(r2);
+}
+
+/// Map points within `radius` of `center`, relative to `center` (float precision near the object).
+std::vector<Vec3f> crop_around(const PointCloud& map, const Vec3d& center, double radius) {
+  std::vector<Vec3f> out;
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Vec3d d = map.world(i) - center;
+    if (d.squaredNorm() <= radius * radius) out.push_back(d.cast<float>());
+  }
+  return out;
+}
+
+std::string format(const char* fmt, double a, double b) {
+  char buf[160];
+  std::snprintf(buf, sizeof(buf), fmt, a, b);
+  return buf;
+}
+
+}  // namespace
+
+Eigen::Isometry3d release_transform(const Eigen::Isometry3d& T_map_gripper_grasp,
+                                    const Eigen::Isometry3d& T_map_gripper_release) {
+  return T_map_gripper_release * T_map_gripper_grasp.inverse();  // Eq. 3
+}
+
+MapEdit grasp_map_edit(const ObjectRecord& object, const GraspRemovalConfig& config) {
+  if (config.method == "sphere") return MapEdit::sphere(object.centroid, config.R_obj);  // Sec. 4.5
+  if (object.cloud.empty()) throw InputError(object_name(object) + ": no cloud to remove from the map");
+  return MapEdit::near(object.cloud, config.distance, object.centroid, config.R_obj);
+}
+
+Operation grasp_operation(const ObjectRecord& object, const Eigen::Isometry3d& T_map_gripper, double time,
+                          const GraspRemovalConfig& config) {
+  const std::string what = "grasp of " + object_name(object);
+  require_finite(T_map_gripper, what);
+  if (object.status != ObjectStatus::on_ground && object.status != ObjectStatus::placed)
+    throw InputError(what + ": it is " + to_string(object.status) + ", not on the ground");
+  Operation op{.time = time, .kind = "grasp", .changes = {}, .map_edits = {grasp_map_edit(object, config)}};
+  op.changes.push_back({.id = object.id,
+                        .status = ObjectStatus::grasped,
+                        .reason = "",
+                        .source = "",
+                        .cloud = std::nullopt,
+                        .T_map_gripper_grasp = T_map_gripper,
+                        .cause = PoseCause::grasp,
+                        .transform = Eigen::Isometry3d::Identity()});
+  return op;
+}
+
+Operation release_operation(const ObjectRecord& object, const Eigen::Isometry3d& T_map_gripper, double time) {
+  const std::string what = "release of " + object_name(object);
+  require_finite(T_map_gripper, what);
+  if (object.status != ObjectStatus::grasped || !object.T_map_gripper_grasp)
+    throw InputError(what + ": it is " + to_string(object.status) + ", not grasped");
+  const Eigen::Isometry3d T = release_transform(*object.T_map_gripper_grasp, T_map_gripper);
+  PointCloud moved = object.cloud;
+  transform_cloud(moved, T);
+  Operation op{.time = time, .kind = "release", .changes = {}, .map_edits = {}};
+  op.changes.push_back({.id = object.id,
+                        .status = ObjectStatus::placed,
+                        .reason = "",
+                        .source = "",
+                        .cloud = std::move(moved),
+                        .T_map_gripper_grasp = std::nullopt,
+                        .cause = PoseCause::release,
+                        .transform = T});
+  return op;
+}
+
+RealignResult realign_object(const ObjectRecord& object, const PointCloud& map, const RealignConfig& config) {
+  if (object.cloud.empty()) throw InputError(object_name(object) + ": no cloud to re-align");
+  RealignResult r;
+  const Vec3d c = object.centroid;
+  std::vector<Vec3f> target_points = crop_around(map, c, object_radius(object) + config.crop_margin);
+  r.map_points = target_points.size();
+  const std::size_t min_points = 10;
+  if (r.map_points < min_points) {
+    r.reason = "no map points near its predicted pose";
+    return r;
+  }
+  std::vector<Vec3f> source;  // the model relative to the predicted centroid
+  source.reserve(object.cloud.size());
+  for (std::size_t i = 0; i < object.cloud.size(); ++i) source.push_back((object.cloud.world(i) - c).cast<float>());
+  const IcpTarget target(std::move(target_points), NormalConfig{.k = 20});
+  IcpConfig icp;
+  icp.max_iterations = config.max_iterations;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // in the frame centred at c
+  for (double d : {config.coarse_distance, config.fine_distance}) {
+    icp.max_correspondence_distance = d;
+    const IcpResult res = register_icp(source, target, T, icp);
+    if (res.status == IcpStatus::converged || res.status == IcpStatus::max_iterations) T = res.T_target_source;
+  }
+  const IcpResult eval = evaluate_alignment(source, target, T, config.inlier_distance);
+  r.fitness = eval.fitness;
+  r.rmse = eval.rmse;
+  // The correction in world coordinates: x ↦ c + T (x - c).
+  r.correction = Eigen::Translation3d(c) * T * Eigen::Translation3d(-c);
+  r.translation = (r.correction * c - c).norm();
+  r.rotation_deg = rotation_angle(T.linear()) * 180.0 / std::numbers::pi;
+  r.found = r.fitness >= config.min_fitness && r.rmse <= config.max_rmse;
+  if (!r.found) {
+    r.reason = "not found near its predicted pose: " +
+               format("%.0f %% of its points seen (min %.0f %%)", 100 * r.fitness, 100 * config.min_fitness) +
+               format(", rmse %.3f m (max %.3f m)", r.rmse, config.max_rmse);
+    return r;
+  }
+  r.large = r.translation > config.report_translation || r.rotation_deg > config.report_rotation_deg;
+  if (r.large) r.reason = format("fell or rolled after release: moved %.2f m, turned %.1f deg", r.translation, r.rotation_deg);
+  return r;
+}
+
+Operation realign_operation(const ObjectRecord& object, const RealignResult& result, double time) {
+  Operation op{.time = time, .kind = "realign", .changes = {}, .map_edits = {}};
+  ObjectChange c{.id = object.id,
+                 .status = ObjectStatus::lost,
+                 .reason = result.reason,
+                 .source = "",
+                 .cloud = std::nullopt,
+                 .T_map_gripper_grasp = std::nullopt,
+                 .cause = PoseCause::lost,
+                 .transform = Eigen::Isometry3d::Identity()};
+  if (result.found) {
+    PointCloud moved = object.cloud;
+    transform_cloud(moved, result.correction);
+    c.status = ObjectStatus::placed;
+    c.cloud = std::move(moved);
+    c.cause = PoseCause::realign;
+    c.transform = result.correction;
+  }
+  op.changes.push_back(std::move(c));
+  return op;
+}
+
+}  // namespace cairn

@@ -1,0 +1,217 @@
+// Map and object updates under manipulation (Sec. 4.5): Eq. 3 on known transforms, the grasp's map
+// edit (object voxels vs the paper's sphere) on a hand-made scene, re-alignment after release,
+// and association of a re-segmentation (matched, moved/bumped, new, vanished).
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/kdtree.hpp"
+#include "cairn/core/transform.hpp"
+#include "cairn/mapping/local_map.hpp"
+#include "cairn/objects/association.hpp"
+#include "cairn/objects/updates.hpp"
+#include "scene.hpp"
+
+namespace cairn {
+namespace {
+
+using Eigen::Isometry3d;
+
+Isometry3d pose(double x, double y, double z, double yaw, double roll = 0.0) {
+  Isometry3d T = pure_translation(x, y, z);
+  T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()));
+  return T;
+}
+
+ObjectRecord record(std::int64_t id, PointCloud cloud, ObjectStatus status = ObjectStatus::on_ground) {
+  ObjectRecord r;
+  r.id = id;
+  r.status = status;
+  r.centroid = cloud.origin + centroid(cloud.points).cast<double>();
+  r.num_points = cloud.size();
+  r.cloud = std::move(cloud);
+  return r;
+}
+
+PointCloud moved(PointCloud c, const Isometry3d& T) {
+  transform_cloud(c, T);
+  return c;
+}
+
+/// Share of `part`'s points that are no longer in `map` (exact positions).
+double share_removed(const PointCloud& part, const PointCloud& map) {
+  const PointCloud local = moved(part, pure_translation(-map.origin.x(), -map.origin.y(), -map.origin.z()));
+  const KdTree tree(map.points);
+  std::size_t gone = 0;
+  for (std::size_t i = 0; i < local.size(); ++i) {
+    float d2 = 0;
+    (void)tree.nearest((local.origin + local.points[i].cast<double>()).cast<float>(), &d2);
+    gone += d2 > 1e-8f;
+  }
+  return double(gone) / double(part.size());
+}
+
+TEST(ObjectUpdates, Eq3MovesTheObjectWithTheGripper) {
+  const Isometry3d grasp = pose(3.0, 1.0, 1.5, 0.3, 0.2);
+  const Isometry3d release = pose(-2.0, 4.0, 1.2, 1.9, -0.1);
+  const Isometry3d T = release_transform(grasp, release);
+  // A point fixed in the gripper frame goes where the gripper took it.
+  const Vec3d in_gripper(0.1, -0.2, -0.6);
+  EXPECT_LT((T * (grasp * in_gripper) - release * in_gripper).norm(), 1e-12);
+  EXPECT_TRUE(release_transform(grasp, grasp).isApprox(Isometry3d::Identity(), 1e-12));
+  // Applied to the stored cloud and centroid by the release operation.
+  const ObjectRecord held = [&] {
+    ObjectRecord r = record(4, test::stone(Vec3d(3.0, 1.0, 0.3), 0.3), ObjectStatus::grasped);
+    r.T_map_gripper_grasp = grasp;
+    return r;
+  }();
+  const Operation op = release_operation(held, release, 10.0);
+  ASSERT_EQ(op.changes.size(), 1u);
+  const PointCloud& c = *op.changes[0].cloud;
+  for (std::size_t i = 0; i < c.size(); i += 97) EXPECT_LT((c.world(i) - T * held.cloud.world(i)).norm(), 1e-5);
+  EXPECT_EQ(op.changes[0].status, ObjectStatus::placed);
+  EXPECT_EQ(op.changes[0].cause, PoseCause::release);
+}
+
+TEST(ObjectUpdates, GraspRemovesTheObjectsVoxelsNotItsNeighboursOrTheGround) {
+  // A stone with a neighbour 10 cm away, on ground: the paper's 1 m sphere takes all three. The
+  // ground under the stones (within 25 cm of their centres) is hidden from the sensors.
+  const PointCloud a = test::stone(Vec3d(0.0, 0.0, 0.3), 0.3);
+  const PointCloud b = test::stone(Vec3d(0.7, 0.0, 0.3), 0.3);
+  const ObjectRecord obj = record(1, a);
+  GraspRemovalConfig voxels;  // defaults: object_voxels
+  GraspRemovalConfig sphere;
+  sphere.method = "sphere";
+  PointCloud g, ground_in_sphere;
+  {
+    const PointCloud grid = test::ground(0.0, 0.0, 2.0);
+    std::vector<std::uint32_t> seen, in_sphere;
+    for (std::size_t i = 0; i < grid.size(); ++i) {
+      const Vec3d p = grid.world(i);
+      if (p.head<2>().norm() < 0.25 || (p.head<2>() - Eigen::Vector2d(0.7, 0.0)).norm() < 0.25) continue;
+      seen.push_back(std::uint32_t(i));
+      if ((p - obj.centroid).norm() <= sphere.R_obj) in_sphere.push_back(std::uint32_t(i));
+    }
+    g = select(grid, seen);
+    ground_in_sphere = select(grid, in_sphere);
+  }
+  PointCloud map = g;
+  append(map, a);
+  append(map, b);
+  PointCloud by_voxels = map, by_sphere = map;
+  (void)apply_edit(by_voxels, grasp_map_edit(obj, voxels));
+  (void)apply_edit(by_sphere, grasp_map_edit(obj, sphere));
+  EXPECT_EQ(share_removed(a, by_voxels), 1.0);
+  EXPECT_EQ(share_removed(b, by_voxels), 0.0);
+  EXPECT_LT(share_removed(ground_in_sphere, by_voxels), 0.01);  // only right at the contact
+  EXPECT_EQ(share_removed(a, by_sphere), 1.0);
+  EXPECT_GT(share_removed(b, by_sphere), 0.5);
+  EXPECT_EQ(share_removed(ground_in_sphere, by_sphere), 1.0);
+  // The streaming map applies the same edit to its voxels: the same voxels as on its snapshot.
+  LocalMapConfig raw;
+  raw.smoothing_radius = 0.0;
+  LocalMap local(raw);
+  local.insert(map);
+  PointCloud snapshot = local.snapshot();
+  const std::size_t on_snapshot = apply_edit(snapshot, grasp_map_edit(obj, voxels));
+  EXPECT_GT(on_snapshot, 0u);
+  EXPECT_EQ(local.apply(grasp_map_edit(obj, voxels)), on_snapshot);
+  EXPECT_EQ(local.num_voxels(), snapshot.size());
+}
+
+TEST(ObjectUpdates, RealignFindsTheReleasedStoneReportsARollAndLosesAMissingOne) {
+  const Vec3d where(5.0, 2.0, 0.35);
+  const Vec3d axes(0.6, 0.35, 0.3);
+  const PointCloud truth = test::ellipsoid(where, axes);
+  PointCloud map = test::ground(5.0, 2.0, 2.0);
+  {  // The map sees the upper 70 % of the stone.
+    std::vector<std::uint32_t> top;
+    for (std::size_t i = 0; i < truth.size(); ++i)
+      if (truth.world(i).z() > where.z() - 0.15) top.push_back(std::uint32_t(i));
+    append(map, select(truth, top));
+  }
+  const RealignConfig cfg;
+  // Predicted 6 cm and 4 deg off: found, corrected to within 1 cm, not reported.
+  const Isometry3d err = Eigen::Translation3d(where) * pose(0.05, -0.03, 0.0, 4.0 * std::numbers::pi / 180) *
+                         Eigen::Translation3d(-where);
+  const ObjectRecord predicted = record(3, moved(truth, err), ObjectStatus::placed);
+  const RealignResult r = realign_object(predicted, map, cfg);
+  ASSERT_TRUE(r.found) << r.reason;
+  EXPECT_FALSE(r.large) << r.reason;
+  const PointCloud fixed = moved(predicted.cloud, r.correction);
+  for (std::size_t i = 0; i < fixed.size(); i += 50) EXPECT_LT((fixed.world(i) - truth.world(i)).norm(), 0.01);
+  const Operation op = realign_operation(predicted, r, 20.0);
+  EXPECT_EQ(op.changes[0].cause, PoseCause::realign);
+  EXPECT_EQ(op.changes[0].status, ObjectStatus::placed);
+  // Predicted 20 cm off (it rolled): found and reported.
+  const Isometry3d roll = Eigen::Translation3d(where) * pose(0.2, 0.0, 0.0, 0.0) * Eigen::Translation3d(-where);
+  const RealignResult rolled = realign_object(record(3, moved(truth, roll), ObjectStatus::placed), map, cfg);
+  EXPECT_TRUE(rolled.found) << rolled.reason;
+  EXPECT_TRUE(rolled.large);
+  EXPECT_NE(rolled.reason.find("fell or rolled"), std::string::npos) << rolled.reason;
+  // Not there at all (only ground): lost, with the reason; the cloud stays.
+  const RealignResult gone = realign_object(predicted, test::ground(5.0, 2.0, 2.0), cfg);
+  EXPECT_FALSE(gone.found);
+  EXPECT_NE(gone.reason.find("not found"), std::string::npos) << gone.reason;
+  const Operation lost = realign_operation(predicted, gone, 21.0);
+  EXPECT_EQ(lost.changes[0].status, ObjectStatus::lost);
+  EXPECT_FALSE(lost.changes[0].cloud.has_value());
+}
+
+TEST(ObjectAssociation, MatchedMovedNewAndVanished) {
+  // Stored: four stones. Rescan: stone 1 where it was, stone 2 bumped 40 cm and turned 30 deg,
+  // stone 3 gone (ground visible), stone 4 out of the map; plus a new stone.
+  const Vec3d axes(0.5, 0.3, 0.25);
+  const PointCloud s1 = test::ellipsoid(Vec3d(0, 0, 0.25), axes);
+  const PointCloud s2 = test::ellipsoid(Vec3d(2.0, 0, 0.25), axes);
+  const PointCloud s3 = test::ellipsoid(Vec3d(0, 2.0, 0.25), axes);
+  const PointCloud s4 = test::ellipsoid(Vec3d(30, 0, 0.25), axes);
+  const PointCloud s5 = test::stone(Vec3d(-2.0, -1.0, 0.3), 0.3);
+  const std::vector<ObjectRecord> db = {record(1, s1), record(2, s2), record(3, s3), record(4, s4)};
+  const Isometry3d bump = Eigen::Translation3d(2.3, 0.2, 0.25) * pose(0, 0, 0, 30.0 * std::numbers::pi / 180) *
+                          Eigen::Translation3d(-2.0, 0.0, -0.25);
+  auto top = [](const PointCloud& c) {  // what the LiDAR sees: the upper part
+    std::vector<std::uint32_t> k;
+    for (std::size_t i = 0; i < c.size(); ++i)
+      if (c.world(i).z() > 0.15) k.push_back(std::uint32_t(i));
+    return select(c, k);
+  };
+  const std::vector<PointCloud> segments = {top(s1), top(moved(s2, bump)), top(s5)};
+  PointCloud map = test::ground(0.0, 0.0, 4.0);
+  for (const PointCloud& s : segments) append(map, s);
+  const Association a = associate(segments, db, map, AssociationConfig{});
+  ASSERT_EQ(a.matched.size(), 1u);
+  EXPECT_EQ(a.matched[0], (std::pair<std::size_t, std::int64_t>(0, 1)));
+  ASSERT_EQ(a.moved.size(), 1u);
+  EXPECT_EQ(a.moved[0].id, 2);
+  EXPECT_EQ(a.moved[0].segment, 1u);
+  const Vec3d c2 = db[1].centroid;
+  EXPECT_LT((a.moved[0].motion * c2 - bump * c2).norm(), 0.02);
+  EXPECT_LT(rotation_angle(a.moved[0].motion.linear() * bump.linear().transpose()) * 180 / std::numbers::pi, 1.0);
+  EXPECT_EQ(a.new_segments, std::vector<std::size_t>{2});
+  EXPECT_EQ(a.vanished, std::vector<std::int64_t>{3});
+  EXPECT_EQ(a.out_of_view, std::vector<std::int64_t>{4});
+  // Stored as one operation: one new object, stone 2 moved, stone 3 lost; nothing duplicated.
+  const Operation op = association_operation(a, segments, db, 30.0, "segmentation");
+  ASSERT_EQ(op.changes.size(), 3u);
+  EXPECT_EQ(op.changes[0].id, 2);
+  EXPECT_EQ(op.changes[0].cause, PoseCause::reassociated);
+  EXPECT_EQ(op.changes[1].id, 3);
+  EXPECT_EQ(op.changes[1].status, ObjectStatus::lost);
+  EXPECT_EQ(op.changes[2].id, 0);
+  // A second rescan of the same scene after storing: everything matched, nothing new.
+  std::vector<ObjectRecord> after = db;
+  after[1].cloud = *op.changes[0].cloud;
+  after[1].centroid = after[1].cloud.origin + centroid(after[1].cloud.points).cast<double>();
+  after[2].status = ObjectStatus::lost;
+  after.push_back(record(5, segments[2]));
+  const Association again = associate(segments, after, map, AssociationConfig{});
+  EXPECT_EQ(again.matched.size(), 3u);
+  EXPECT_TRUE(again.new_segments.empty());
+  EXPECT_TRUE(again.moved.empty());
+  EXPECT_EQ(association_operation(again, segments, after, 31.0, "segmentation").changes.size(), 0u);
+}
+
+}  // namespace
+}  // namespace cairn
