@@ -8,6 +8,7 @@
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/mapping/config.hpp"
+#include "cairn/objects/config.hpp"
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/registration/scale_recovery.hpp"
 #include "cairn/segmentation/segmenter.hpp"
@@ -22,6 +23,7 @@ struct AppConfig {
   MappingConfig mapping;
   ScaleRecoveryConfig scale;
   GlobalRegistrationConfig registration;
+  ObjectsConfig objects;
   sim::SimulationConfig simulation;  // generic defaults; `cairn simulate` starts from its scenario
 
   template <class V>
@@ -32,6 +34,7 @@ struct AppConfig {
     v("mapping", mapping, "LiDAR mapping (Sec. 4.2)");
     v("scale", scale, "metric scale of the drone SfM model from camera positions (Sec. 4.1)");
     v("registration", registration, "segment-based global registration (Sec. 4.4)");
+    v("objects", objects, "object database: map updates under manipulation (Sec. 4.5)");
     v("simulation", simulation, "simulator: site, excavator, LiDARs, state estimation, drone");
   }
 };

@@ -15,4 +15,5 @@ void add_register_command(CLI::App& app, std::function<int()>& run);
 void add_protocol_command(CLI::App& app, std::function<int()>& run);
 void add_grasp_trial_command(CLI::App& app, std::function<int()>& run);
 void add_grasp_baseline_command(CLI::App& app, std::function<int()>& run);
+void add_objects_command(CLI::App& app, std::function<int()>& run);
 }  // namespace cairn::app

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "cairn/core/io/io.hpp"
+#include <iterator>
 #include "support/test_data.hpp"
 
 using namespace cairn;
@@ -44,19 +45,21 @@ std::vector<int> read_labels(const std::filesystem::path& f) {
   return v;
 }
 
-/// A small scene: flat ground and two boxes, written as a binary PLY.
-std::filesystem::path small_scene(const std::filesystem::path& dir, bool with_nan = false) {
+/// A small scene: flat ground and two boxes, written as a binary PLY (the second box moved by
+/// `shift` in x).
+std::filesystem::path small_scene(const std::filesystem::path& dir, bool with_nan = false, float shift = 0.0f,
+                                  const std::string& name = "") {
   PointCloud c;
   for (int i = 0; i < 120; ++i)
     for (int j = 0; j < 120; ++j) c.points.emplace_back(i * 0.03f, j * 0.03f, 0.0f);
-  for (const float cx : {1.0f, 2.5f})
+  for (const float cx : {1.0f, 2.5f + shift})
     for (int i = 0; i < 15; ++i)
       for (int j = 0; j < 15; ++j)
         for (int k = 0; k < 15; ++k)
           if (i == 0 || j == 0 || k == 14 || i == 14 || j == 14)  // box shell, open bottom
             c.points.emplace_back(cx + i * 0.03f, 1.5f + j * 0.03f, 0.03f + k * 0.03f);
   if (with_nan) c.points[5] = Vec3f(std::nanf(""), 0, 0);
-  const auto f = dir / (with_nan ? "scene_nan.ply" : "scene.ply");
+  const auto f = dir / (!name.empty() ? name : with_nan ? "scene_nan.ply" : "scene.ply");
   io::write_ply(f, c);
   return f;
 }
@@ -168,6 +171,89 @@ TEST(Cli, SegmentWritesTheContractFiles) {
   const PointCloud seg = io::load_cloud(dir / "out" / "segments.ply");
   EXPECT_TRUE(seg.has_colors());
   EXPECT_EQ(seg.labels, labels);
+}
+
+std::string file_bytes(const std::filesystem::path& f) {
+  std::ifstream in(f, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+TEST(Cli, ObjectsUpdateListShowHistoryExport) {
+  const auto dir = test::temp_dir("cli_objects");
+  const std::string db = (dir / "objects.db").string();
+  std::filesystem::remove(db);
+  CmdResult r = run("objects update --db " + db + " --map " + small_scene(dir).string() + " --time 1");
+  ASSERT_EQ(r.code, 0) << r.err;
+  auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["created"].size(), 2u) << r.out;
+  r = run("objects list --db " + db);
+  ASSERT_EQ(r.code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["objects"].size(), 2u);
+  const auto& first = j["objects"][0];
+  for (const char* k : {"id", "status", "centroid", "num_points", "updates"}) EXPECT_TRUE(first.contains(k)) << k;
+  EXPECT_EQ(first["status"], "on_ground");
+  const std::string id = std::to_string(first["id"].get<int>());
+  r = run("objects show " + id + " --db " + db);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["source"], "segmentation");
+  r = run("objects export " + id + " --db " + db + " --out " + (dir / "obj.ply").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(io::load_cloud(dir / "obj.ply").size(), first["num_points"].get<std::size_t>());
+  // The same scene again: both matched, nothing new. The second box pushed 40 cm: moved, no duplicate.
+  r = run("objects update --db " + db + " --map " + (dir / "scene.ply").string() + " --time 2");
+  ASSERT_EQ(r.code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["matched"].size(), 2u) << r.out;
+  EXPECT_EQ(j["op"], 0);  // nothing to store
+  double x_before = 0;  // the second box: the larger centroid x
+  const auto listed = nlohmann::json::parse(run("objects list --db " + db).out);
+  for (const auto& o : listed["objects"]) x_before = std::max(x_before, o["centroid"][0].get<double>());
+  r = run("objects update --db " + db + " --map " + small_scene(dir, false, 0.4f, "pushed.ply").string() + " --time 3");
+  ASSERT_EQ(r.code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["moved"].size(), 1u) << r.out;
+  EXPECT_EQ(j["created"].size(), 0u) << r.out;
+  const std::string moved = std::to_string(j["moved"][0]["object"].get<int>());
+  const auto after = nlohmann::json::parse(run("objects show " + moved + " --db " + db).out);
+  EXPECT_NEAR(after["centroid"][0].get<double>() - x_before, 0.4, 0.01);
+  EXPECT_NE(after["reason"].get<std::string>().find("bumped"), std::string::npos) << after;
+  r = run("objects history " + moved + " --db " + db);
+  ASSERT_EQ(r.code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["history"].size(), 2u);
+  EXPECT_EQ(j["history"][0]["cause"], "created");
+  EXPECT_EQ(j["history"][1]["cause"], "reassociated");
+  EXPECT_EQ(nlohmann::json::parse(run("objects list --db " + db).out)["objects"].size(), 2u);
+}
+
+TEST(Cli, ObjectsRefusesMissingForeignAndCorruptDatabases) {
+  const auto dir = test::temp_dir("cli_objects_bad");
+  const auto ply = small_scene(dir);
+  CmdResult r = run("objects list --db " + (dir / "missing.db").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("missing.db"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "missing.db"));
+  const std::string before = file_bytes(ply);
+  for (const char* sub : {"list", "show 1", "history 1"}) {
+    r = run(std::string("objects ") + sub + " --db " + ply.string());
+    EXPECT_EQ(r.code, 2) << sub;
+    EXPECT_NE(r.err.find("scene.ply"), std::string::npos) << r.err;
+  }
+  r = run("objects update --db " + ply.string() + " --map " + ply.string());  // the writer too
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(file_bytes(ply), before);
+  std::ofstream(dir / "empty.db").close();
+  r = run("objects update --db " + (dir / "empty.db").string() + " --map " + ply.string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("empty file"), std::string::npos) << r.err;
+  EXPECT_EQ(std::filesystem::file_size(dir / "empty.db"), 0u);
+  const std::string db = (dir / "objects.db").string();
+  std::filesystem::remove(db);
+  ASSERT_EQ(run("objects update --db " + db + " --map " + ply.string()).code, 0);
+  r = run("objects show 99 --db " + db);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no object 99"), std::string::npos) << r.err;
 }
 
 TEST(Cli, BadInputExitsWithTwoAndNamesTheProblem) {

@@ -7,6 +7,8 @@
 #include <numbers>
 #include <set>
 
+#include <spdlog/spdlog.h>
+
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/transform.hpp"
@@ -110,6 +112,7 @@ Association associate(const std::vector<PointCloud>& segments, const std::vector
     const double support = double(count_near(models[j].points, *map_tree, config.overlap_distance)) /
                            double(models[j].points.size());
     present[j] = support >= config.min_support;
+    spdlog::debug("association: object {} support {:.2f}", objs[j]->id, support);
     std::size_t near = 0;
     map_tree->for_each_in_radius((objs[j]->centroid - o).cast<float>(), float(config.in_view_radius),
                                  [&](std::uint32_t, float) { ++near; });
@@ -149,6 +152,8 @@ Association associate(const std::vector<PointCloud>& segments, const std::vector
       const bool lost = objs[j]->status == ObjectStatus::lost;
       if (!lost && (segs[i].centroid - models[j].centroid).norm() > config.search_radius) continue;
       const Fit f = fit_segment_to_model(segs[i], models[j], o, config);
+      spdlog::debug("association: segment {} as object {} moved: fitness {:.2f}, rmse {:.3f} m", i, objs[j]->id,
+                    f.fitness, f.rmse);
       if (f.fitness >= config.min_fitness && f.rmse <= config.max_rmse) fits.push_back({i, j, f});
     }
   }

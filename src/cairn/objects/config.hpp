@@ -48,7 +48,8 @@ struct RealignConfig {
 struct AssociationConfig {
   double overlap_distance = 0.05;   // [m] a segment point this close to an object's points is shared
   double min_overlap = 0.5;         // share of a segment's points shared with an object to match it
-  double min_support = 0.3;         // share of an object's points with a map point near: still there
+  double min_support = 0.6;         // share of an object's points with a map point near: still there
+                                    // (its lowest points always have ground near them)
   double search_radius = 3.0;       // [m] a segment this close may be an object that moved
   double min_fitness = 0.8;         // moved object: share of the segment's points on the model
   double max_rmse = 0.02;           // [m] moved object: over those points
