@@ -3,10 +3,13 @@
 // unknown id). Only `update` writes.
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
+#include <fstream>
 #include <iostream>
 
 #include "app_config.hpp"
 #include "cairn/core/io/io.hpp"
+#include "cairn/eval/object_tracking.hpp"
 #include "cairn/objects/pipeline.hpp"
 #include "commands.hpp"
 
@@ -70,6 +73,68 @@ void add_update(CLI::App& parent, std::function<int()>& run) {
   });
 }
 
+struct TrackArgs {
+  std::string scenario = "exp2", db, out;
+  std::uint64_t seed = 1;
+  int rounds = 4, moves = 0;
+  CommonOptions common;
+};
+
+int run_track(const TrackArgs& a) {
+  AppConfig base;
+  base.simulation = sim::scenario_config(a.scenario, sim::default_real_mesh_dir());
+  const AppConfig cfg = a.common.load(base);
+  eval::ObjectTrackingConfig c;
+  c.scenario = a.scenario;
+  c.seed = a.seed;
+  c.rounds = a.rounds;
+  c.max_moves_per_round = a.moves;
+  c.database = a.db;
+  c.simulation = cfg.simulation;
+  c.mapping = cfg.mapping;
+  c.segmentation = cfg.segmentation;
+  c.objects = cfg.objects;
+  const eval::ObjectTrackingResult r = eval::run_object_tracking(c, [](const std::string& what, int done, int total) {
+    spdlog::info("objects track: {} {}/{}", what, done, total);
+  });
+  std::printf("%5s %5s %6s %7s %7s %8s %8s %8s %8s %6s %7s %7s %7s %7s  %s\n", "round", "stone", "object", "moved_m",
+              "settle", "eq3_cm", "eq3_deg", "err_cm", "err_deg", "ghost%", "sph_gnd", "sph_nbr", "vox_gnd", "vox_nbr",
+              "reason");
+  for (const eval::MoveRecord& m : r.moves)
+    std::printf("%5d %5d %6lld %7.2f %7.3f %8.2f %8.2f %8.2f %8.2f %6.2f %7zu %7zu %7zu %7zu  %s\n", m.round, m.stone,
+                static_cast<long long>(m.object), m.moved_m, m.settle_m, 100 * m.predicted_error_m,
+                m.predicted_error_deg, 100 * m.error_m, m.error_deg, 100 * m.ghost_share, m.sphere.ground,
+                m.sphere.neighbours, m.object_voxels.ground, m.object_voxels.neighbours, m.reason.c_str());
+  for (const eval::RoundRecord& x : r.rounds)
+    std::printf("round %d: %d/%d moves within 2 cm and 1 deg (max %.1f cm, %.2f deg); re-segmentation: %zu matched, "
+                "%zu new (%zu on tracked stones, %zu on others, %zu on terrain), %zu vanished, %zu moved; %zu objects\n",
+                x.round, x.within_tolerance, x.moves, 100 * x.max_error_m, x.max_error_deg, x.matched, x.new_objects,
+                x.new_on_tracked, x.new_on_untracked, x.new_on_terrain, x.vanished, x.moved_unexpectedly, x.objects);
+  for (const std::string& u : r.unmatched) spdlog::warn("objects track: {}", u);
+  std::printf("%d stones, %d objects created, %d tracked; %.0f s wall\n", r.stones, r.objects_created,
+              r.stones_tracked, r.wall_time);
+  if (!a.out.empty()) {
+    std::ofstream f(a.out);
+    if (!f || !(f << eval::to_json(r).dump(1) << '\n')) throw InputError("--out: cannot write '" + a.out + "'");
+  }
+  return kExitOk;
+}
+
+void add_track(CLI::App& parent, std::function<int()>& run) {
+  auto args = std::make_shared<TrackArgs>();
+  auto* cmd = parent.add_subcommand(
+      "track", "Experiment 2 in the simulator: scan, store the objects, move every stone round after round "
+               "without a map reset; the database scored against the truth after every move");
+  cmd->add_option("--scenario", args->scenario, "scenario (exp1, exp2)")->capture_default_str();
+  cmd->add_option("--seed", args->seed, "site seed")->capture_default_str();
+  cmd->add_option("--rounds", args->rounds, "rounds of moving every stone")->capture_default_str();
+  cmd->add_option("--moves", args->moves, "moves per round (0: every stone)")->capture_default_str();
+  cmd->add_option("--db", args->db, "object database to write (default: a temporary file)");
+  cmd->add_option("--out", args->out, "write every move and round as JSON");
+  args->common.add_to(*cmd);
+  cmd->callback([&run, args] { run = [args] { return run_track(*args); }; });
+}
+
 }  // namespace
 
 void add_objects_command(CLI::App& app, std::function<int()>& run) {
@@ -97,6 +162,7 @@ void add_objects_command(CLI::App& app, std::function<int()>& run) {
       },
       true);
   add_update(*cmd, run);
+  add_track(*cmd, run);
 }
 
 }  // namespace cairn::app

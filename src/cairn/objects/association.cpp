@@ -48,23 +48,40 @@ struct Entity {  // an object or a segment in the working frame
   }
 };
 
-struct Fit {
-  double fitness = 0.0, rmse = 0.0;
-  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();  // world frame, moves the model
-};
+constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
-/// ICP of the segment onto the object's model from yaw_seeds starting yaws; the best fit.
-Fit fit_segment_to_model(const Entity& seg, const Entity& model, const Vec3d& o, const AssociationConfig& config) {
+/// The starting rotations: yaw_seeds about the vertical, with all_faces for each of the six faces
+/// of a box turned down (a stone that fell or rolled).
+std::vector<Eigen::Matrix3d> start_rotations(int yaw_seeds, bool all_faces) {
+  std::vector<Eigen::Matrix3d> faces = {Eigen::Matrix3d::Identity()};
+  if (all_faces) {
+    const double h = 0.5 * std::numbers::pi;
+    for (const auto& [angle, axis] : {std::pair{h, Eigen::Vector3d::UnitX()}, std::pair{-h, Eigen::Vector3d::UnitX()},
+                                      std::pair{h, Eigen::Vector3d::UnitY()}, std::pair{-h, Eigen::Vector3d::UnitY()},
+                                      std::pair{2 * h, Eigen::Vector3d::UnitX()}})
+      faces.push_back(Eigen::AngleAxisd(angle, axis).toRotationMatrix());
+  }
+  std::vector<Eigen::Matrix3d> out;
+  for (const Eigen::Matrix3d& f : faces)
+    for (int k = 0; k < yaw_seeds; ++k)
+      out.push_back(Eigen::AngleAxisd(2.0 * std::numbers::pi * k / yaw_seeds, Eigen::Vector3d::UnitZ()) * f);
+  return out;
+}
+
+/// ICP of the segment onto the object's model from the starting rotations; the best fit.
+ModelFit fit_segment_to_model(const Entity& seg, const Entity& model, const Vec3d& o, const AssociationConfig& config,
+                              bool all_faces) {
   const Vec3f cm = model.centroid;
   std::vector<Vec3f> target_pts(model.points.size()), source(seg.points.size());
   for (std::size_t i = 0; i < model.points.size(); ++i) target_pts[i] = model.points[i] - cm;
   for (std::size_t i = 0; i < seg.points.size(); ++i) source[i] = seg.points[i] - seg.centroid;
   const IcpTarget target(std::move(target_pts), NormalConfig{.k = 20});
   IcpConfig icp;
-  Fit best;
-  for (int k = 0; k < config.yaw_seeds; ++k) {
+  std::vector<ModelFit> fits;
+  for (const Eigen::Matrix3d& R : start_rotations(config.yaw_seeds, all_faces)) {
     // T maps the segment (centred at its centroid) into the model's frame (centred at cm).
-    Eigen::Isometry3d T(Eigen::AngleAxisd(2.0 * std::numbers::pi * k / config.yaw_seeds, Eigen::Vector3d::UnitZ()));
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = R;
     // Coarse: the centroids of a partial view and of the whole model differ by up to ~radius/2.
     const double coarse = std::max(4.0 * config.overlap_distance, double(model.radius) / 2.0);
     for (double d : {coarse, config.overlap_distance}) {
@@ -73,18 +90,44 @@ Fit fit_segment_to_model(const Entity& seg, const Entity& model, const Vec3d& o,
       if (r.T_target_source.matrix().allFinite()) T = r.T_target_source;
     }
     const IcpResult e = evaluate_alignment(source, target, T, config.overlap_distance);
-    if (e.fitness > best.fitness || (e.fitness == best.fitness && e.rmse < best.rmse)) {
-      best.fitness = e.fitness;
-      best.rmse = e.rmse;
-      // world: model = o + cm + T (seg - o - cs)  ⇒  the model moves by M = (T_seg-frame ∘ T^-1 ∘ model-frame).
-      const Eigen::Vector3d wm = o + cm.cast<double>(), ws = o + seg.centroid.cast<double>();
-      best.motion = Eigen::Translation3d(ws) * T.inverse() * Eigen::Translation3d(-wm);
-    }
+    // world: model = o + cm + T (seg - o - cs)  ⇒  the model moves by M = (T_seg-frame ∘ T^-1 ∘ model-frame).
+    const Eigen::Vector3d wm = o + cm.cast<double>(), ws = o + seg.centroid.cast<double>();
+    fits.push_back({.fitness = e.fitness, .rmse = e.rmse,
+                    .motion = Eigen::Translation3d(ws) * T.inverse() * Eigen::Translation3d(-wm)});
+  }
+  const auto better = [](const ModelFit& a, const ModelFit& b) {
+    return a.fitness > b.fitness || (a.fitness == b.fitness && a.rmse < b.rmse);
+  };
+  ModelFit best;
+  for (const ModelFit& f : fits)
+    if (better(f, best)) best = f;
+  // The best fit of a pose clearly different from the best one (a round or symmetric stone fits
+  // several ways): how close it comes tells whether the best is ambiguous.
+  // (A pose that lays the model onto its own surface — a symmetric stone turned — is the same.)
+  for (const ModelFit& f : fits) {
+    if (f.fitness <= best.runner_up) continue;
+    const Eigen::Isometry3d D = best.motion.inverse() * f.motion;  // world frame, model onto itself?
+    if (rotation_angle(D.linear()) <= config.distinct_rotation_deg / kDegPerRad) continue;
+    std::vector<Vec3f> moved(model.points.size());
+    for (std::size_t i = 0; i < moved.size(); ++i)
+      moved[i] = (D * (o + model.points[i].cast<double>()) - o).cast<float>();
+    if (double(count_near(moved, *model.tree, config.overlap_distance)) >= 0.8 * double(moved.size())) continue;
+    best.runner_up = f.fitness;
   }
   return best;
 }
 
 }  // namespace
+
+ModelFit fit_model_to_segment(const PointCloud& segment, const PointCloud& model, const AssociationConfig& config,
+                              bool all_faces) {
+  if (segment.empty() || model.empty()) throw InputError("fit_model_to_segment: empty cloud");
+  const Vec3d o = model.origin;
+  Entity seg, mod;
+  seg.prepare(relative_to(segment, o));
+  mod.prepare(relative_to(model, o));
+  return fit_segment_to_model(seg, mod, o, config, all_faces);
+}
 
 Association associate(const std::vector<PointCloud>& segments, const std::vector<ObjectRecord>& objects,
                       const PointCloud& map, const AssociationConfig& config) {
@@ -142,7 +185,7 @@ Association associate(const std::vector<PointCloud>& segments, const std::vector
   // 3. Moved: unmatched segments tried as objects that are no longer where they were.
   struct Candidate {
     std::size_t seg, obj;
-    Fit fit;
+    ModelFit fit;
   };
   std::vector<Candidate> fits;
   for (std::size_t i : unmatched) {
@@ -151,10 +194,12 @@ Association associate(const std::vector<PointCloud>& segments, const std::vector
       if (present[j]) continue;
       const bool lost = objs[j]->status == ObjectStatus::lost;
       if (!lost && (segs[i].centroid - models[j].centroid).norm() > config.search_radius) continue;
-      const Fit f = fit_segment_to_model(segs[i], models[j], o, config);
+      // A lost object may have fallen or rolled: every face down is tried.
+      const ModelFit f = fit_segment_to_model(segs[i], models[j], o, config, /*all_faces=*/lost);
       spdlog::debug("association: segment {} as object {} moved: fitness {:.2f}, rmse {:.3f} m", i, objs[j]->id,
                     f.fitness, f.rmse);
-      if (f.fitness >= config.min_fitness && f.rmse <= config.max_rmse) fits.push_back({i, j, f});
+      if (f.fitness >= config.min_fitness && f.rmse <= config.max_rmse && f.unambiguous(config.ambiguity_margin))
+        fits.push_back({i, j, f});
     }
   }
   std::sort(fits.begin(), fits.end(), [](const Candidate& x, const Candidate& y) { return x.fit.fitness > y.fit.fitness; });

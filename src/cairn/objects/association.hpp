@@ -34,6 +34,20 @@ struct Association {
   std::vector<std::int64_t> out_of_view;   // not checked
 };
 
+/// Where a stored object's model lies in a segment: ICP of the segment's points onto the model
+/// from starting rotations (yaw_seeds about the vertical; with all_faces also each face of a box
+/// turned down: a stone that fell or rolled); the best fit. fitness: share of the segment's points
+/// within overlap_distance of the model; motion: moves the model onto the segment (world).
+struct ModelFit {
+  double fitness = 0.0, rmse = 0.0;
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  double runner_up = 0.0;  // best fitness of a pose turned > distinct_rotation_deg from this one
+  /// The fit is unambiguous: no clearly different pose comes within `margin` of its fitness.
+  [[nodiscard]] bool unambiguous(double margin) const { return runner_up < fitness - margin; }
+};
+[[nodiscard]] ModelFit fit_model_to_segment(const PointCloud& segment, const PointCloud& model,
+                                            const AssociationConfig& config, bool all_faces);
+
 /// Associates the segments of a re-segmentation of `map` (world clouds) with the stored objects
 /// (grasped objects are skipped: they are in the gripper). Throws InputError on non-finite input.
 [[nodiscard]] Association associate(const std::vector<PointCloud>& segments, const std::vector<ObjectRecord>& objects,

@@ -27,6 +27,9 @@ void ObjectsConfig::validate() const {
   require(r.inlier_distance > 0, "realign.inlier_distance", "must be > 0");
   require(r.min_fitness >= 0 && r.min_fitness <= 1, "realign.min_fitness", "must be in [0, 1]");
   require(r.max_rmse > 0, "realign.max_rmse", "must be > 0");
+  require(r.search_radius >= 0, "realign.search_radius", "must be >= 0");
+  require(r.search_min_fitness > 0 && r.search_min_fitness <= 1, "realign.search_min_fitness", "must be in (0, 1]");
+  require(r.max_direct_translation > 0 && r.max_direct_rotation_deg > 0, "realign.max_direct_*", "must be > 0");
   const auto& a = association;
   require(a.overlap_distance > 0, "association.overlap_distance", "must be > 0");
   require(a.min_overlap > 0 && a.min_overlap <= 1, "association.min_overlap", "must be in (0, 1]");
@@ -38,6 +41,8 @@ void ObjectsConfig::validate() const {
   require(a.in_view_radius > 0, "association.in_view_radius", "must be > 0");
   require(a.in_view_min_points >= 1, "association.in_view_min_points", "must be >= 1");
   require(a.min_segment_points >= 1, "association.min_segment_points", "must be >= 1");
+  require(a.distinct_rotation_deg > 0, "association.distinct_rotation_deg", "must be > 0");
+  require(a.ambiguity_margin >= 0, "association.ambiguity_margin", "must be >= 0");
 }
 
 }  // namespace cairn

@@ -27,9 +27,13 @@ struct RealignConfig {
   int max_iterations = 40;           // per stage
   double inlier_distance = 0.03;     // [m] a model point with a map point this close is seen
   double min_fitness = 0.35;         // share of model points seen (the hidden bottom is never seen)
-  double max_rmse = 0.02;            // [m] over the inliers
+  double max_rmse = 0.02;            // [m] over the inliers (looser lets wrong fits of a rolled stone through)
   double report_translation = 0.15;  // [m] larger corrections are reported (the stone fell or rolled)
   double report_rotation_deg = 15.0;
+  double search_radius = 2.0;        // [m] not found near the prediction: segments this close searched
+  double search_min_fitness = 0.7;   // share of a searched segment's points on the model
+  double max_direct_translation = 0.4;  // [m] ICP from the prediction moving farther, or turning
+  double max_direct_rotation_deg = 30.0;  //     more, slid off: the search decides instead
   template <class V>
   void visit(V& v) {
     v("crop_margin", crop_margin, "map points within the object's radius plus this are matched [m]");
@@ -41,6 +45,10 @@ struct RealignConfig {
     v("max_rmse", max_rmse, "maximum RMS distance of the seen points, else the object is lost [m]");
     v("report_translation", report_translation, "corrections above this are reported as fell/rolled [m]");
     v("report_rotation_deg", report_rotation_deg, "corrections above this are reported as fell/rolled [deg]");
+    v("search_radius", search_radius, "not found near the prediction: object segments this close are searched [m]");
+    v("search_min_fitness", search_min_fitness, "share of a searched segment's points that must lie on the model");
+    v("max_direct_translation", max_direct_translation, "ICP from the prediction moving farther is not believed [m]");
+    v("max_direct_rotation_deg", max_direct_rotation_deg, "ICP from the prediction turning more is not believed [deg]");
   }
 };
 
@@ -57,6 +65,8 @@ struct AssociationConfig {
   double in_view_radius = 0.5;      // [m] an object with map points this close to its centroid
   int in_view_min_points = 20;      //     (at least this many) is in view: missing means lost
   int min_segment_points = 50;      // smaller unmatched segments do not become objects
+  double distinct_rotation_deg = 30.0;  // [deg] fits turned more than this apart are different poses
+  double ambiguity_margin = 0.05;   // a different pose within this fitness of the best: ambiguous
   template <class V>
   void visit(V& v) {
     v("overlap_distance", overlap_distance, "segment points this close to an object's points are shared [m]");
@@ -69,6 +79,8 @@ struct AssociationConfig {
     v("in_view_radius", in_view_radius, "map points this close to an object's centroid put it in view [m]");
     v("in_view_min_points", in_view_min_points, "at least this many map points put an object in view");
     v("min_segment_points", min_segment_points, "smaller unmatched segments do not become objects");
+    v("distinct_rotation_deg", distinct_rotation_deg, "fits turned more than this apart are different poses [deg]");
+    v("ambiguity_margin", ambiguity_margin, "a different pose within this share of the best fit's fitness makes it ambiguous");
   }
 };
 

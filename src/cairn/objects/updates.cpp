@@ -6,6 +6,7 @@
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/transform.hpp"
+#include "cairn/objects/association.hpp"
 #include "cairn/registration/icp.hpp"
 
 namespace cairn {
@@ -109,8 +110,12 @@ RealignResult realign_object(const ObjectRecord& object, const PointCloud& map, 
   IcpConfig icp;
   icp.max_iterations = config.max_iterations;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // in the frame centred at c
-  for (double d : {config.coarse_distance, config.fine_distance}) {
+  // Coarse, fine, then the inlier distance with a robust kernel: the model and the new view are
+  // different partial views, so only the surface they share should pull.
+  for (double d : {config.coarse_distance, config.fine_distance, config.inlier_distance}) {
     icp.max_correspondence_distance = d;
+    icp.kernel = d == config.inlier_distance ? "huber" : "none";
+    icp.kernel_scale = 0.5 * config.inlier_distance;
     const IcpResult res = register_icp(source, target, T, icp);
     if (res.status == IcpStatus::converged || res.status == IcpStatus::max_iterations) T = res.T_target_source;
   }
@@ -122,6 +127,11 @@ RealignResult realign_object(const ObjectRecord& object, const PointCloud& map, 
   r.translation = (r.correction * c - c).norm();
   r.rotation_deg = rotation_angle(T.linear()) * 180.0 / std::numbers::pi;
   r.found = r.fitness >= config.min_fitness && r.rmse <= config.max_rmse;
+  if (r.found && (r.translation > config.max_direct_translation || r.rotation_deg > config.max_direct_rotation_deg)) {
+    r.found = false;  // ICP slid off the prediction (a round stone spins): not evidence of a pose
+    r.reason = format("ICP from its predicted pose slid %.2f m, %.0f deg: not believed", r.translation, r.rotation_deg);
+    return r;
+  }
   if (!r.found) {
     r.reason = "not found near its predicted pose: " +
                format("%.0f %% of its points seen (min %.0f %%)", 100 * r.fitness, 100 * config.min_fitness) +
@@ -131,6 +141,51 @@ RealignResult realign_object(const ObjectRecord& object, const PointCloud& map, 
   r.large = r.translation > config.report_translation || r.rotation_deg > config.report_rotation_deg;
   if (r.large) r.reason = format("fell or rolled after release: moved %.2f m, turned %.1f deg", r.translation, r.rotation_deg);
   return r;
+}
+
+RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map, const ObjectsConfig& config,
+                              const SegmentationConfig& segmentation) {
+  RealignResult r = realign_object(object, map, config.realign);
+  if (r.found) return r;
+  const double reach = object_radius(object) + config.realign.search_radius;
+  std::vector<std::uint32_t> near;
+  for (std::uint32_t i = 0; i < map.size(); ++i)
+    if ((map.world(i) - object.centroid).head<2>().norm() <= reach) near.push_back(i);
+  if (near.size() < 100) return r;
+  const PointCloud crop = select(map, near);
+  const SegmentationResult seg = segment(crop, segmentation);
+  ModelFit best;
+  for (const Segment& s : seg.segments) {
+    if (s.planar || (crop.origin + s.centroid.cast<double>() - object.centroid).head<2>().norm() > config.realign.search_radius)
+      continue;
+    const ModelFit f = fit_model_to_segment(select(crop, s.indices), object.cloud, config.association, true);
+    if (f.fitness > best.fitness) best = f;
+  }
+  if (best.fitness < config.realign.search_min_fitness || best.rmse > config.association.max_rmse) {
+    r.reason += format("; no segment within %.1f m fits its model (best %.0f %% of its points)",
+                       config.realign.search_radius, 100 * best.fitness);
+    return r;
+  }
+  if (!best.unambiguous(config.association.ambiguity_margin)) {
+    r.reason += format("; a segment fits its model in several poses (%.0f %% and %.0f %% of its points)",
+                       100 * best.fitness, 100 * best.runner_up);
+    return r;
+  }
+  ObjectRecord found = object;
+  transform_cloud(found.cloud, best.motion);
+  found.centroid = best.motion * object.centroid;
+  RealignResult refined = realign_object(found, map, config.realign);
+  if (!refined.found) {
+    r.reason += "; a segment near fits its model but the map does not confirm it (" + refined.reason + ")";
+    return r;
+  }
+  refined.correction = refined.correction * best.motion;
+  refined.translation = (refined.correction * object.centroid - object.centroid).norm();
+  refined.rotation_deg = rotation_angle(refined.correction.linear()) * 180.0 / std::numbers::pi;
+  refined.large = true;
+  refined.reason = format("fell or rolled after release: found %.2f m, %.1f deg from its prediction by search",
+                          refined.translation, refined.rotation_deg);
+  return refined;
 }
 
 Operation realign_operation(const ObjectRecord& object, const RealignResult& result, double time) {

@@ -10,6 +10,7 @@
 
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/objects/config.hpp"
+#include "cairn/segmentation/segmenter.hpp"
 #include "cairn/objects/object_db.hpp"
 
 namespace cairn {
@@ -44,6 +45,13 @@ struct RealignResult {
 /// ICP of the object's cloud (at its stored pose) to the map around it, coarse then fine.
 [[nodiscard]] RealignResult realign_object(const ObjectRecord& object, const PointCloud& map,
                                            const RealignConfig& config);
+
+/// realign_object, and when the object is not found near its prediction a search for a stone that
+/// fell or rolled: the map within search_radius of the prediction segmented, every object segment
+/// there fitted to the model from each face turned down (fit_model_to_segment), the best one
+/// (search_min_fitness) refined by realign_object from where it was found; reported as large.
+[[nodiscard]] RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map,
+                                            const ObjectsConfig& config, const SegmentationConfig& segmentation);
 
 /// The stored outcome: found → cloud corrected, status placed (reason set when large);
 /// not found → status lost with the reason, cloud unchanged.

@@ -167,6 +167,30 @@ GraspTrialResult execute_grasp(SimulatedWorld& world, const GraspPlan& plan, con
   return r;
 }
 
+CarryResult carry_and_release(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_motion,
+                              double drop_height, const SimulationConfig& config) {
+  if (k >= world.site.stones.size()) throw InputError("carry_and_release: no stone " + std::to_string(k));
+  if (!T_motion.matrix().allFinite()) throw InputError("carry_and_release: the motion is not finite");
+  const PointCloud& v = world.site.stones[k].mesh.vertices;
+  double lift = -INFINITY;  // how far the carried stone must rise so its lowest point clears the terrain
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const Eigen::Vector3d p = T_motion * v.world(i);
+    lift = std::max(lift, world.site.terrain.height(p.x(), p.y()) + drop_height - p.z());
+  }
+  CarryResult r;
+  r.lift = lift;
+  r.carried = Eigen::Translation3d(0.0, 0.0, lift) * T_motion;
+  std::vector<Eigen::Isometry3d> poses(world.site.stones.size(), Eigen::Isometry3d::Identity());
+  poses[k] = r.carried;
+  apply_stone_poses(world.site, poses);
+  const SiteSettleResult settled = settle_site(world.site, config.physics);  // moves the site's stones
+  world.scene = make_world_scene(world.site, config.terrain_mesh_spacing);
+  r.total = settled.stone_poses[k] * r.carried;
+  r.settling = settled.stone_poses;
+  r.settled = settled.settled;
+  return r;
+}
+
 std::vector<SweepSchedule> sweep_schedule(const LidarConfig& lidar, double duration, std::uint64_t seed) {
   validate(lidar);
   if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("sweep_schedule: duration must be positive");

@@ -112,6 +112,22 @@ SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed);
 /// (no state-estimate offset yet). Throws as run_grasp_trial.
 GraspTrialResult execute_grasp(SimulatedWorld& world, const GraspPlan& plan, const SimulationConfig& config);
 
+/// A held stone carried rigidly and put down (the outcome of a grasp that holds, for stages that
+/// test what happens around the grasp, e.g. the object database): stone k is moved by T_motion
+/// (world frame), lowered or raised so its lowest vertex is `drop_height` above the terrain,
+/// released and settled with the rest of the site in the physics (settle_site); the ray-cast
+/// scene is rebuilt. Returns the stone's total motion (the carry, the vertical correction and the
+/// settling). Throws InputError on a bad index or a non-finite motion.
+struct CarryResult {
+  double lift = 0.0;  // [m] vertical correction of the carry (the machine lowers until contact)
+  Eigen::Isometry3d carried = Eigen::Isometry3d::Identity();  // T_motion with the lift
+  Eigen::Isometry3d total = Eigen::Isometry3d::Identity();    // carried, then the settling
+  std::vector<Eigen::Isometry3d> settling;  // every stone's motion while the site settled
+  bool settled = false;                     // the site came to rest
+};
+CarryResult carry_and_release(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_motion,
+                              double drop_height, const SimulationConfig& config);
+
 /// The sweeps of both sensors in [0, duration): H starts at a random phase, V at another one (the
 /// sensors are not synchronised). Returned in order of start time.
 struct SweepSchedule {

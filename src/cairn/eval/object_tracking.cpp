@@ -1,0 +1,448 @@
+#include "cairn/eval/object_tracking.hpp"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <array>
+#include <memory>
+#include <optional>
+#include <numbers>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/kdtree.hpp"
+#include "cairn/core/log.hpp"
+#include "cairn/core/transform.hpp"
+#include "cairn/mapping/mapper.hpp"
+#include "cairn/objects/pipeline.hpp"
+#include "cairn/objects/updates.hpp"
+
+namespace cairn::eval {
+namespace {
+
+using Eigen::Isometry3d;
+constexpr double kDeg = 180.0 / std::numbers::pi;
+constexpr double kTruthRadius = 12.0;  // [m] truth kept around the swing axis (R_map = 10 m + margin)
+
+Isometry3d yaw_pose(const Vec3d& p, double yaw) {
+  Isometry3d T = pure_translation(p.x(), p.y(), p.z());
+  T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
+  return T;
+}
+
+/// The true surfaces at one moment: labelled points (-1 terrain, k stone k) near the machine, a
+/// kd-tree over them, and the map-offset estimator.
+struct Truth {
+  PointCloud cloud;
+  std::unique_ptr<KdTree> tree;
+  std::unique_ptr<ObjectSurfaceTruth> offset;
+  Truth(const sim::Site& site, const Vec3d& base, double spacing, std::uint64_t seed) {
+    sim::SamplingConfig s;
+    s.spacing = spacing;
+    s.noise_sigma = 0.0;
+    const sim::SampledSite sampled = sim::sample_site(site, s, seed);
+    std::vector<std::uint32_t> keep;
+    for (std::size_t i = 0; i < sampled.cloud.size(); ++i)
+      if ((sampled.cloud.world(i) - base).head<2>().norm() < kTruthRadius) keep.push_back(std::uint32_t(i));
+    cloud = select(sampled.cloud, keep);
+    tree = std::make_unique<KdTree>(cloud.points);
+    offset = std::make_unique<ObjectSurfaceTruth>(cloud);
+  }
+  /// Label of the nearest true surface within `near` of a world point, or kLabelNone.
+  [[nodiscard]] std::int32_t label_near(const Vec3d& world, double near) const {
+    float d2 = 0.0f;
+    const std::uint32_t i = tree->nearest((world - cloud.origin).cast<float>(), &d2);
+    return double(d2) <= near * near ? cloud.labels[i] : kLabelNone;
+  }
+};
+
+/// The cumulative transform of an object's history after its creation (world frame).
+Isometry3d db_motion(const std::vector<PoseUpdate>& history) {
+  Isometry3d A = Isometry3d::Identity();
+  for (const PoseUpdate& h : history)
+    if (h.cause != PoseCause::created) A = h.transform * A;
+  return A;
+}
+
+class Tracker {
+ public:
+  Tracker(const ObjectTrackingConfig& c, const TrackingProgress& progress);
+  void initial_scan();
+  void populate();
+  void run_round(int round);
+  ObjectTrackingResult result;
+
+ private:
+  struct Tracked {
+    int stone = 0;
+    std::int64_t object = 0;
+    Vec3d created_centroid = Vec3d::Zero();
+    Isometry3d E0 = Isometry3d::Identity();         // map offset when the object was created
+    Isometry3d M = Isometry3d::Identity();          // true motion since then (world)
+    double purity = 0.0;                            // share of its points on its stone
+  };
+  void scan(double t_from, double t_to);
+  [[nodiscard]] Isometry3d E_state(double t) const;  // estimate frame -> world at time t
+  [[nodiscard]] std::unique_ptr<Truth> truth() const;
+  [[nodiscard]] RemovalCounts removal(const PointCloud& map, const MapEdit& edit, const Truth& t,
+                                      const Isometry3d& E, int stone) const;
+  /// The stone most of a map-frame cloud lies on (E: map -> world), or -1.
+  [[nodiscard]] int stone_of(const PointCloud& cloud, const Truth& t, const Isometry3d& E, double* share = nullptr) const;
+  void plan_slots();
+  [[nodiscard]] bool slot_clear(const Eigen::Vector2d& xy, int stone, double half) const;
+  [[nodiscard]] std::optional<Vec3d> free_slot(int round, int stone) const;
+  bool move(int round, Tracked& tr);  // false: no free slot
+  void score(MoveRecord& m, const Tracked& tr, const Isometry3d& E, bool predicted) const;
+  [[nodiscard]] double ghost_share(const PointCloud& map, const Truth& now, const Isometry3d& E) const;
+
+  const ObjectTrackingConfig& cfg_;
+  const TrackingProgress& progress_;
+  sim::SimulationConfig sim_;
+  sim::SimulatedWorld world_;
+  sim::StateEstimate state_;
+  std::vector<sim::SweepSchedule> schedule_;
+  std::size_t next_ = 0;
+  std::unique_ptr<Mapper> mapper_;
+  std::unique_ptr<ObjectDatabase> db_;
+  std::vector<Tracked> tracked_;
+  std::vector<Vec3d> slots_odd_, slots_even_;  // flattest first
+  PointCloud former_;  // true surfaces of moved stones at their earlier poses (world)
+  double now_ = 0.0;
+  Vec3d base_ = Vec3d::Zero();
+};
+
+sim::SimulationConfig at_rest(const ObjectTrackingConfig& c) {
+  c.objects.validate();
+  if (c.rounds < 1 || !(c.initial_scan > 0) || !(c.rescan > 0) || !(c.carry_time >= 0))
+    throw ConfigError("object tracking: rounds >= 1 and positive scan times are required");
+  sim::SimulationConfig s = c.simulation;
+  s.settle_in_physics = true;  // one world at rest for the sensors, the physics and the truth
+  return s;
+}
+
+Tracker::Tracker(const ObjectTrackingConfig& c, const TrackingProgress& progress)
+    : cfg_(c), progress_(progress), sim_(at_rest(c)), world_(sim::make_world(sim_, c.seed)) {
+  base_ = world_.excavator.T_world_base(0.0).translation();
+  const int moves = c.max_moves_per_round > 0 ? c.max_moves_per_round : int(world_.site.stones.size());
+  const double duration = c.initial_scan + c.rounds * moves * (c.carry_time + c.rescan) + 1.0;
+  const sim::Excavator& ex = world_.excavator;
+  state_ = sim::simulate_state_estimation([&ex](double t) { return ex.T_world_cabin(t); },
+                                          [&ex](double t) { return ex.joints_at(t); }, ex.model(), 0.0, duration,
+                                          sim_.state, c.seed);
+  schedule_ = sim::sweep_schedule(sim_.lidar, duration, c.seed);
+  MapperSetup setup{.robot = ex.model(), .T_cabin_sensor = {{"H", ex.T_cabin_H()}, {"V", ex.T_cabin_V()}}};
+  mapper_ = std::make_unique<Mapper>(std::move(setup), c.mapping);
+  mapper_->add_state_estimates(state_.estimate);
+  mapper_->add_joint_states(state_.joints);
+  std::filesystem::path file = c.database;
+  if (file.empty())
+    file = std::filesystem::temp_directory_path() / ("cairn_tracking_" + std::to_string(::getpid()) + ".db");
+  std::filesystem::remove(file);
+  db_ = std::make_unique<ObjectDatabase>(file, ObjectDatabase::Mode::create);
+  result.scenario = c.scenario;
+  result.seed = c.seed;
+  result.stones = int(world_.site.stones.size());
+  plan_slots();
+}
+
+void Tracker::scan(double t_from, double t_to) {
+  const double period = 1.0 / sim_.lidar.rate;
+  while (next_ < schedule_.size() && schedule_[next_].t_start < t_from) ++next_;  // busy carrying
+  for (; next_ < schedule_.size() && schedule_[next_].t_start + period <= t_to; ++next_) {
+    const sim::Sweep sweep = sim::simulate_scheduled_sweep(world_, sim_.lidar, schedule_[next_], cfg_.seed);
+    PointCloud cloud;
+    cloud.points = sweep.points;
+    cloud.times = sweep.times;
+    mapper_->add_sweep(sweep.sensor, cloud, sweep.t_start, sweep.t_end);
+  }
+  now_ = t_to;
+}
+
+Isometry3d Tracker::E_state(double t) const {
+  return interpolate_pose(state_.truth, t) * interpolate_pose(state_.estimate, t).inverse();
+}
+
+std::unique_ptr<Truth> Tracker::truth() const {
+  return std::make_unique<Truth>(world_.site, base_, cfg_.truth_spacing, cfg_.seed);
+}
+
+void Tracker::initial_scan() {
+  if (progress_) progress_("initial scan", 0, 1);
+  scan(0.0, cfg_.initial_scan);
+}
+
+int Tracker::stone_of(const PointCloud& cloud, const Truth& t, const Isometry3d& E, double* share) const {
+  std::vector<int> votes(world_.site.stones.size(), 0);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const std::int32_t l = t.label_near(E * cloud.world(i), cfg_.score_near);
+    if (l >= 0 && std::size_t(l) < votes.size()) ++votes[std::size_t(l)];
+  }
+  const auto best = std::max_element(votes.begin(), votes.end());
+  if (share) *share = best == votes.end() || cloud.empty() ? 0.0 : double(*best) / double(cloud.size());
+  return best == votes.end() || 2 * *best < int(cloud.size()) ? -1 : int(best - votes.begin());
+}
+
+void Tracker::populate() {
+  const PointCloud map = mapper_->map();
+  const std::vector<PointCloud> segments = object_segments(map, segment(map, cfg_.segmentation));
+  const ObjectsUpdate u = update_objects(*db_, map, segments, cfg_.objects.association, now_, "segmentation");
+  const auto t = truth();
+  const Isometry3d E0 = t->offset->map_offset(map);
+  // Each object to the stone most of its points lie on (world = E0 · map).
+  std::vector<int> objects_per_stone(world_.site.stones.size(), 0);
+  std::vector<Tracked> candidates;
+  for (const ObjectRecord& r : db_->objects()) {
+    double purity = 0.0;
+    const int k = stone_of(r.cloud, *t, E0, &purity);
+    if (k < 0) {
+      result.unmatched.push_back("object " + std::to_string(r.id) + " lies on no stone");
+      continue;
+    }
+    ++objects_per_stone[std::size_t(k)];
+    candidates.push_back({.stone = k, .object = r.id, .created_centroid = r.centroid, .E0 = E0,
+                          .M = Isometry3d::Identity(), .purity = purity});
+  }
+  for (const Tracked& c : candidates) {
+    if (objects_per_stone[std::size_t(c.stone)] == 1) tracked_.push_back(c);
+    else result.unmatched.push_back("stone " + std::to_string(c.stone) + " has several objects");
+  }
+  for (std::size_t k = 0; k < objects_per_stone.size(); ++k)
+    if (objects_per_stone[k] == 0) result.unmatched.push_back("stone " + std::to_string(k) + " has no object");
+  result.objects_created = int(u.association.new_segments.size());
+  result.stones_tracked = int(tracked_.size());
+}
+
+RemovalCounts Tracker::removal(const PointCloud& map, const MapEdit& edit, const Truth& t, const Isometry3d& E,
+                               int stone) const {
+  RemovalCounts c;
+  const MapEditRegion region(edit);
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Vec3d p = map.world(i);
+    const std::int32_t l = t.label_near(E * p, cfg_.score_near);
+    const bool removed = region.removes(p);
+    if (l == stone) (removed ? c.object : c.object_left)++;
+    else if (removed && l >= 0) ++c.neighbours;
+    else if (removed) ++c.ground;  // terrain, or nothing true near (noise on the ground)
+  }
+  return c;
+}
+
+/// Height range of the terrain over a disc of radius r: slope and bumps together (a stone put
+/// down where this is small stays where it is put).
+double ground_unevenness(const sim::Terrain& t, const Eigen::Vector2d& c, double r) {
+  double lo = INFINITY, hi = -INFINITY;
+  for (int i = -4; i <= 4; ++i)
+    for (int j = -4; j <= 4; ++j) {
+      const Eigen::Vector2d q = c + r / 4.0 * Eigen::Vector2d(i, j);
+      if ((q - c).norm() > r) continue;
+      const double h = t.height(q.x(), q.y());
+      lo = std::min(lo, h), hi = std::max(hi, h);
+    }
+  return hi - lo;
+}
+
+void Tracker::plan_slots() {
+  const double heading = cfg_.simulation.excavator.base_yaw_deg / kDeg;
+  std::vector<std::pair<double, Vec3d>> outer, inner;
+  const double s = cfg_.slot_spacing;
+  for (double x = -cfg_.slot_max_distance; x <= cfg_.slot_max_distance; x += s)
+    for (double y = -cfg_.slot_max_distance; y <= cfg_.slot_max_distance; y += s) {
+      const Eigen::Vector2d xy = base_.head<2>() + Eigen::Rotation2Dd(heading) * Eigen::Vector2d(x, y);
+      const double d = Eigen::Vector2d(x, y).norm(), angle = std::abs(std::atan2(y, x)) * kDeg;
+      if (d < cfg_.slot_min_distance || d > cfg_.slot_max_distance || angle > cfg_.slot_max_angle_deg) continue;
+      const Vec3d p(xy.x(), xy.y(), world_.site.terrain.height(xy.x(), xy.y()));
+      (d >= cfg_.slot_split_distance ? outer : inner)
+          .emplace_back(ground_unevenness(world_.site.terrain, xy, cfg_.slot_footprint), p);
+    }
+  for (auto* v : {&outer, &inner}) std::sort(v->begin(), v->end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [_, p] : outer) slots_odd_.push_back(p);
+  for (const auto& [_, p] : inner) slots_even_.push_back(p);
+}
+
+bool Tracker::slot_clear(const Eigen::Vector2d& xy, int stone, double half) const {
+  for (std::size_t j = 0; j < world_.site.stones.size(); ++j) {
+    if (int(j) == stone) continue;
+    const auto& b = world_.site.stones[j].bounds;
+    const Eigen::Vector2d q = xy.cwiseMax(b.min().head<2>()).cwiseMin(b.max().head<2>());
+    if ((q - xy).norm() <= half + cfg_.slot_clearance) return false;
+  }
+  return true;
+}
+
+std::optional<Vec3d> Tracker::free_slot(int round, int stone) const {
+  const sim::Stone& s = world_.site.stones[std::size_t(stone)];
+  const double half = 0.5 * (s.bounds.max() - s.bounds.min()).head<2>().norm();
+  // The round's slots first, then the others (stones that rolled may sit on the round's slots).
+  for (const auto* slots : round % 2 == 1 ? std::array{&slots_odd_, &slots_even_} : std::array{&slots_even_, &slots_odd_})
+    for (const Vec3d& slot : *slots)
+      if (slot_clear(slot.head<2>(), stone, half) && (slot - s.centroid).head<2>().norm() > 2.0 * half) return slot;
+  return std::nullopt;
+}
+
+void Tracker::score(MoveRecord& m, const Tracked& tr, const Isometry3d& E, bool predicted) const {
+  const Isometry3d A = db_motion(db_->history(tr.object));
+  const Isometry3d A_true = E.inverse() * tr.M * tr.E0;  // the truth's motion in the map frame
+  const double e_m = (A * tr.created_centroid - A_true * tr.created_centroid).norm();
+  const double e_deg = rotation_angle(A.linear().transpose() * A_true.linear()) * kDeg;
+  (predicted ? m.predicted_error_m : m.error_m) = e_m;
+  (predicted ? m.predicted_error_deg : m.error_deg) = e_deg;
+}
+
+double Tracker::ghost_share(const PointCloud& map, const Truth& now, const Isometry3d& E) const {
+  if (former_.empty() || map.empty()) return 0.0;
+  const KdTree former(former_.points);
+  std::size_t ghosts = 0;
+  const float near2 = float(cfg_.score_near * cfg_.score_near);
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Vec3d w = E * map.world(i);
+    if (now.label_near(w, cfg_.score_near) != kLabelNone) continue;  // on a true surface
+    float d2 = 0.0f;
+    (void)former.nearest((w - former_.origin).cast<float>(), &d2);
+    ghosts += d2 <= near2;
+  }
+  return double(ghosts) / double(map.size());
+}
+
+bool Tracker::move(int round, Tracked& tr) {
+  const ObjectRecord obj = *db_->object(tr.object);
+  if (obj.status == ObjectStatus::lost) {  // the machine does not grasp what it has lost
+    result.unmatched.push_back("round " + std::to_string(round) + ": object " + std::to_string(tr.object) +
+                               " (stone " + std::to_string(tr.stone) + ") is lost, not moved");
+    return false;
+  }
+  const std::optional<Vec3d> free = free_slot(round, tr.stone);
+  if (!free) {
+    result.unmatched.push_back("round " + std::to_string(round) + ": no free slot for stone " + std::to_string(tr.stone));
+    return false;
+  }
+  const Vec3d slot = *free;
+  MoveRecord m{.round = round, .stone = tr.stone, .object = tr.object, .purity = tr.purity, .time = now_};
+  const PointCloud map = mapper_->map();
+  const auto before = truth();
+  const Isometry3d E = before->offset->map_offset(map);
+  // Grasp (Sec. 4.5): the gripper at the object's centroid, both edits measured, one applied.
+  const Isometry3d T_MG_grasp = yaw_pose(obj.centroid, 0.0);
+  GraspRemovalConfig sphere = cfg_.objects.grasp_removal, voxels = cfg_.objects.grasp_removal;
+  sphere.method = "sphere";
+  voxels.method = "object_voxels";
+  m.sphere = removal(map, grasp_map_edit(obj, sphere), *before, E, tr.stone);
+  m.object_voxels = removal(map, grasp_map_edit(obj, voxels), *before, E, tr.stone);
+  const Operation grasp = grasp_operation(obj, T_MG_grasp, now_, cfg_.objects.grasp_removal);
+  (void)db_->commit(grasp);
+  for (const MapEdit& e : grasp.map_edits) (void)mapper_->apply_edit(e);
+  for (std::size_t i = 0; i < before->cloud.size(); ++i)
+    if (before->cloud.labels[i] == tr.stone) former_.points.push_back((before->cloud.world(i) - former_.origin).cast<float>());
+  // Carry: commanded in the map frame, executed where the state estimate puts the gripper.
+  const double t_release = now_ + cfg_.carry_time;
+  // The stone keeps its seat: tilted with the ground from under it to under the slot, then turned.
+  const sim::Terrain& ground = world_.site.terrain;
+  const Eigen::Quaterniond tilt = Eigen::Quaterniond::FromTwoVectors(ground.normal(obj.centroid.x(), obj.centroid.y()),
+                                                                     ground.normal(slot.x(), slot.y()));
+  Isometry3d T_MG_release = yaw_pose(Vec3d(slot.x(), slot.y(), obj.centroid.z()), cfg_.turn_deg / kDeg);
+  T_MG_release.linear() = tilt.toRotationMatrix() * T_MG_release.linear();
+  const Isometry3d commanded = E_state(t_release) * T_MG_release * T_MG_grasp.inverse() * E_state(now_).inverse();
+  const sim::CarryResult carry = sim::carry_and_release(world_, std::size_t(tr.stone), commanded, cfg_.drop_height, sim_);
+  for (Tracked& other : tracked_)
+    other.M = (other.stone == tr.stone ? carry.total : carry.settling[std::size_t(other.stone)]) * other.M;
+  const Isometry3d settle = carry.total * carry.carried.inverse();
+  const Vec3d c_now = world_.site.stones[std::size_t(tr.stone)].centroid;  // after the settling
+  m.settle_m = (c_now - settle.inverse() * c_now).norm();
+  m.settle_deg = rotation_angle(settle.linear()) * kDeg;
+  m.moved_m = (c_now - carry.total.inverse() * c_now).norm();
+  m.turned_deg = rotation_angle(carry.total.linear()) * kDeg;
+  spdlog::debug("objects track: stone {} to slot ({:.2f}, {:.2f}): lift {:.3f} m, settled {} by {:.3f} m {:.1f} deg",
+                tr.stone, slot.x(), slot.y(), carry.lift, carry.settled, m.settle_m, m.settle_deg);
+  // Release (Eq. 3): the arm lowered the stone by `lift` until it touched the ground.
+  T_MG_release = Eigen::Translation3d(0.0, 0.0, carry.lift) * T_MG_release;
+  (void)db_->commit(release_operation(*db_->object(tr.object), T_MG_release, t_release));
+  score(m, tr, E, /*predicted=*/true);
+  // Rescan, re-align (Sec. 4.5), score.
+  scan(t_release, t_release + cfg_.rescan);
+  const PointCloud rescanned = mapper_->map();
+  const auto after = truth();
+  const Isometry3d E_after = after->offset->map_offset(rescanned);
+  const RealignResult r = relocate_object(*db_->object(tr.object), rescanned, cfg_.objects, cfg_.segmentation);
+  (void)db_->commit(realign_operation(*db_->object(tr.object), r, now_));
+  m.found = r.found;
+  m.reason = r.reason;
+  score(m, tr, E_after, /*predicted=*/false);
+  m.ghost_share = ghost_share(rescanned, *after, E_after);
+  m.map_points = rescanned.size();
+  result.moves.push_back(m);
+  return true;
+}
+
+void Tracker::run_round(int round) {
+  RoundRecord rr{.round = round};
+  const int n = cfg_.max_moves_per_round > 0 ? std::min<int>(cfg_.max_moves_per_round, int(tracked_.size()))
+                                             : int(tracked_.size());
+  for (int i = 0; i < n; ++i) {
+    if (progress_) progress_("round " + std::to_string(round), i, n);
+    if (!move(round, tracked_[std::size_t(i)])) continue;
+    const MoveRecord& m = result.moves.back();
+    ++rr.moves;
+    rr.within_tolerance += m.error_m <= 0.02 && m.error_deg <= 1.0;
+    rr.max_error_m = std::max(rr.max_error_m, m.error_m);
+    rr.max_error_deg = std::max(rr.max_error_deg, m.error_deg);
+  }
+  // Re-segmentation of the rescanned map: every segment should be a known object.
+  const PointCloud map = mapper_->map();
+  const std::vector<PointCloud> segments = object_segments(map, segment(map, cfg_.segmentation));
+  const ObjectsUpdate u = update_objects(*db_, map, segments, cfg_.objects.association, now_, "segmentation");
+  rr.matched = u.association.matched.size();
+  rr.new_objects = u.association.new_segments.size();
+  rr.vanished = u.association.vanished.size();
+  rr.moved_unexpectedly = u.association.moved.size();
+  rr.objects = db_->objects(false).size();
+  const auto t = truth();
+  const Isometry3d E = t->offset->map_offset(map);
+  for (std::size_t seg : u.association.new_segments) {
+    const int k = stone_of(segments[seg], *t, E);
+    const bool tracked = std::any_of(tracked_.begin(), tracked_.end(), [&](const Tracked& x) { return x.stone == k; });
+    (k < 0 ? rr.new_on_terrain : tracked ? rr.new_on_tracked : rr.new_on_untracked)++;
+  }
+  result.rounds.push_back(rr);
+}
+
+}  // namespace
+
+ObjectTrackingResult run_object_tracking(const ObjectTrackingConfig& config, const TrackingProgress& progress) {
+  Stopwatch sw;
+  Tracker t(config, progress);
+  t.result.site_at_rest = true;
+  t.initial_scan();
+  t.populate();
+  for (int r = 1; r <= config.rounds; ++r) t.run_round(r);
+  t.result.wall_time = sw.lap_ms() / 1000.0;
+  return t.result;
+}
+
+nlohmann::json to_json(const ObjectTrackingResult& r) {
+  nlohmann::json moves = nlohmann::json::array(), rounds = nlohmann::json::array();
+  auto counts = [](const RemovalCounts& c) {
+    return nlohmann::json{{"object", c.object}, {"ground", c.ground}, {"neighbours", c.neighbours},
+                          {"object_left", c.object_left}};
+  };
+  for (const MoveRecord& m : r.moves)
+    moves.push_back({{"round", m.round}, {"stone", m.stone}, {"object", m.object}, {"purity", m.purity},
+                     {"time", m.time},
+                     {"moved_m", m.moved_m}, {"turned_deg", m.turned_deg}, {"settle_m", m.settle_m},
+                     {"settle_deg", m.settle_deg}, {"predicted_error_m", m.predicted_error_m},
+                     {"predicted_error_deg", m.predicted_error_deg}, {"error_m", m.error_m},
+                     {"error_deg", m.error_deg}, {"found", m.found}, {"reason", m.reason},
+                     {"removed_sphere", counts(m.sphere)}, {"removed_object_voxels", counts(m.object_voxels)},
+                     {"ghost_share", m.ghost_share}, {"map_points", m.map_points}});
+  for (const RoundRecord& x : r.rounds)
+    rounds.push_back({{"round", x.round}, {"objects", x.objects}, {"matched", x.matched},
+                      {"new_objects", x.new_objects}, {"new_on_tracked", x.new_on_tracked},
+                      {"new_on_untracked", x.new_on_untracked}, {"new_on_terrain", x.new_on_terrain},
+                      {"vanished", x.vanished},
+                      {"moved_unexpectedly", x.moved_unexpectedly}, {"moves", x.moves},
+                      {"within_tolerance", x.within_tolerance}, {"max_error_m", x.max_error_m},
+                      {"max_error_deg", x.max_error_deg}});
+  return {{"scenario", r.scenario}, {"seed", r.seed}, {"stones", r.stones}, {"objects_created", r.objects_created},
+          {"stones_tracked", r.stones_tracked}, {"unmatched", r.unmatched}, {"moves", moves}, {"rounds", rounds},
+          {"wall_time", r.wall_time}};
+}
+
+}  // namespace cairn::eval
