@@ -28,8 +28,9 @@ struct RealignConfig {
   double inlier_distance = 0.03;     // [m] a model point with a map point this close is seen
   double min_fitness = 0.35;         // share of model points seen (the hidden bottom is never seen)
   double max_rmse = 0.02;            // [m] over the inliers (looser lets wrong fits of a rolled stone through)
-  double report_translation = 0.15;  // [m] larger corrections are reported (the stone fell or rolled)
-  double report_rotation_deg = 15.0;
+  double report_translation = 0.05;  // [m] larger corrections are reported (the stone fell or rolled;
+                                     // Eq. 3 alone is off by the state estimate's drift, 1-3 cm)
+  double report_rotation_deg = 5.0;
   double search_radius = 2.0;        // [m] not found near the prediction: segments this close searched
   double search_min_fitness = 0.7;   // share of a searched segment's points on the model
   double max_direct_translation = 0.4;  // [m] ICP from the prediction moving farther, or turning
