@@ -22,6 +22,7 @@ TEST(ObjectTracking, MovedStonesAreFoundAgainAndTheGraspTakesOnlyTheStone) {
   c.rounds = 1;
   c.simulation = sim::scenario_config("exp2", sim::default_real_mesh_dir());
   c.database = std::filesystem::temp_directory_path() / ("cairn_test_tracking_" + std::to_string(::getpid()) + ".db");
+  for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(c.database.string() + side);
 #if defined(__SANITIZE_ADDRESS__)
   // The same path, short: one move, scans of a few seconds (the figures are asserted in Release).
   c.max_moves_per_round = 1;

@@ -109,6 +109,15 @@ class Tracker {
   PointCloud former_;  // true surfaces of moved stones at their earlier poses (world)
   double now_ = 0.0;
   Vec3d base_ = Vec3d::Zero();
+  std::filesystem::path temporary_;  // the default database, removed with the tracker
+
+ public:
+  ~Tracker() {
+    db_.reset();
+    if (temporary_.empty()) return;
+    std::error_code ec;
+    for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(temporary_.string() + side, ec);
+  }
 };
 
 sim::SimulationConfig at_rest(const ObjectTrackingConfig& c) {
@@ -135,9 +144,12 @@ Tracker::Tracker(const ObjectTrackingConfig& c, const TrackingProgress& progress
   mapper_->add_state_estimates(state_.estimate);
   mapper_->add_joint_states(state_.joints);
   std::filesystem::path file = c.database;
-  if (file.empty())
+  if (file.empty()) {
     file = std::filesystem::temp_directory_path() / ("cairn_tracking_" + std::to_string(::getpid()) + ".db");
-  std::filesystem::remove(file);
+    temporary_ = file;
+  }
+  if (std::filesystem::exists(file))  // never overwrite a database someone kept
+    throw InputError(file.string() + ": exists; the experiment writes a new object database (remove it or choose another)");
   db_ = std::make_unique<ObjectDatabase>(file, ObjectDatabase::Mode::create);
   result.scenario = c.scenario;
   result.seed = c.seed;

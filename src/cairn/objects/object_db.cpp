@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdio>
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <set>
@@ -79,14 +80,17 @@ Eigen::Isometry3d transform_from_blob(const std::vector<std::byte>& b, const std
   if (b.size() != 16 * sizeof(double)) throw InputError(file + ": corrupt object database: bad transform");
   Eigen::Matrix4d m;
   std::memcpy(m.data(), b.data(), b.size());
-  if (!m.allFinite()) throw InputError(file + ": corrupt object database: non-finite transform");
+  if (!m.allFinite() || !m.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)) ||
+      !(m.topLeftCorner<3, 3>().transpose() * m.topLeftCorner<3, 3>()).isIdentity(1e-6))
+    throw InputError(file + ": corrupt object database: a stored transform is not rigid");
   Eigen::Isometry3d T;
   T.matrix() = m;
   return T;
 }
 
-std::vector<Vec3f> points_from_blob(const std::vector<std::byte>& b, std::size_t n, const std::string& file) {
-  if (b.size() != n * sizeof(Vec3f)) throw InputError(file + ": corrupt object database: point blob size");
+std::vector<Vec3f> points_from_blob(const std::vector<std::byte>& b, std::int64_t n, const std::string& file) {
+  if (n < 0 || b.size() % sizeof(Vec3f) != 0 || b.size() / sizeof(Vec3f) != std::uint64_t(n))
+    throw InputError(file + ": corrupt object database: point blob size");
   std::vector<Vec3f> pts(n);
   std::memcpy(static_cast<void*>(pts.data()), b.data(), b.size());
   return pts;
@@ -113,11 +117,27 @@ void check_header(const std::filesystem::path& file) {
                      std::to_string(app) + "), not a cairn object database");
 }
 
-/// quick_check of the main file through an immutable read-only connection: no lock, no -wal or
-/// -shm created, nothing written, whatever the file holds. (A crash's uncheckpointed WAL is not
-/// read here; the main file alone is a consistent older state, and the real connection recovers
-/// the WAL afterwards.)
-void check_contents(const std::filesystem::path& file) {
+/// A stored value that does not parse (a status, a cause, an edit kind): the file is corrupt.
+template <class F>
+auto stored(const std::string& file, F&& parse) {
+  try {
+    return parse();
+  } catch (const InputError& e) {
+    throw InputError(file + ": corrupt object database: " + e.what());
+  }
+}
+
+bool file_exists(const std::filesystem::path& f) {
+  std::error_code ec;
+  return std::filesystem::exists(f, ec);
+}
+
+/// quick_check and the schema version, read without writing anything. A file without a -wal (closed
+/// cleanly: the main file is the whole database) is read through an immutable connection, which
+/// takes no lock and creates no -wal or -shm, whatever the file holds; with a -wal (a writer is
+/// running, or crashed) through a normal read-only connection, which reads the WAL too.
+int check_contents(const std::filesystem::path& file) {
+  const bool wal = file_exists(file.string() + "-wal");
   std::string uri = "file:";
   for (char ch : std::filesystem::absolute(file).string()) {
     if (ch == '?' || ch == '#' || ch == '%') {
@@ -128,11 +148,12 @@ void check_contents(const std::filesystem::path& file) {
       uri += ch;
     }
   }
-  uri += "?immutable=1";
+  if (!wal) uri += "?immutable=1";
   try {
     const sqlite::Connection c(uri, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI);
     const std::string quick = c.scalar_text("PRAGMA quick_check");
     if (quick != "ok") throw InputError(quick);
+    return int(c.scalar_int("PRAGMA user_version"));
   } catch (const InputError& e) {
     throw InputError(file.string() + ": corrupt object database (" + e.what() + ")");
   }
@@ -149,9 +170,17 @@ void fsync_directory(const std::filesystem::path& dir) {
 /// A new database is made under a temporary name and renamed into place, so a crash never
 /// leaves a half-initialised file under the real name.
 void create_database(const std::filesystem::path& file) {
+  for (const char* side : {"-wal", "-shm", "-journal"})
+    if (file_exists(file.string() + side))
+      throw InputError(file.string() + side + ": left over from a database that is gone; remove it first (it would be "
+                       "replayed into the new one)");
   const std::filesystem::path tmp = file.string() + ".creating-" + std::to_string(::getpid());
-  std::filesystem::remove(tmp);
-  {
+  auto remove_tmp = [&] {
+    std::error_code ec;
+    for (const char* side : {"", "-journal", "-wal", "-shm"}) std::filesystem::remove(tmp.string() + side, ec);
+  };
+  remove_tmp();
+  try {
     sqlite::Connection db(tmp.string(), SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
     db.exec("PRAGMA journal_mode=DELETE; PRAGMA synchronous=FULL; PRAGMA application_id=" +
             std::to_string(ObjectDatabase::kApplicationId));
@@ -159,13 +188,16 @@ void create_database(const std::filesystem::path& file) {
     objects_detail::migrate(db, 0, ObjectDatabase::kSchemaVersion);
     t.commit();
     if (db.scalar_text("PRAGMA journal_mode=WAL") != "wal") db.fail("cannot switch to the WAL journal");
+  } catch (...) {
+    remove_tmp();
+    throw;
   }
-  std::error_code ec;
-  if (std::filesystem::exists(file, ec)) {
-    std::filesystem::remove(tmp);
-    throw InputError(file.string() + ": appeared while it was being created");
-  }
-  std::filesystem::rename(tmp, file);
+  // link() fails when the name exists: a database someone else created meanwhile is never replaced.
+  const int linked = ::link(tmp.c_str(), file.c_str());
+  const int err = errno;
+  remove_tmp();
+  if (linked != 0)
+    throw InputError(file.string() + ": cannot create the object database: " + std::strerror(err));
   fsync_directory(file.parent_path());
 }
 
@@ -216,28 +248,26 @@ ObjectDatabase::ObjectDatabase(const std::filesystem::path& file, Mode mode)
     : file_(file),
       read_only_(mode == Mode::read_only),
       db_([&] {
-        std::error_code ec;
-        if (!std::filesystem::exists(file, ec)) {
+        if (!file_exists(file)) {
           if (mode != Mode::create) throw InputError(file.string() + ": no such object database");
           create_database(file);
         }
         check_header(file);
-        check_contents(file);
+        // Everything that refuses the file is decided before a writable connection exists.
+        const int version = check_contents(file);
+        if (version > kSchemaVersion)
+          throw InputError(file.string() + ": object database of schema version " + std::to_string(version) +
+                           ", newer than this cairn's " + std::to_string(kSchemaVersion));
+        if (version < 1) throw InputError(file.string() + ": object database without a schema");
+        if (read_only_ && version < kSchemaVersion)
+          throw InputError(file.string() + ": object database of schema version " + std::to_string(version) +
+                           ": open it once read-write (any writing command) to migrate it to " +
+                           std::to_string(kSchemaVersion));
         return sqlite::Connection(file.string(), read_only_ ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE);
       }()) {
   const int version = schema_version();
-  if (version > kSchemaVersion)
-    throw InputError(file_.string() + ": object database of schema version " + std::to_string(version) +
-                     ", newer than this cairn's " + std::to_string(kSchemaVersion));
-  if (version < 1) throw InputError(file_.string() + ": object database without a schema");
   db_.exec("PRAGMA foreign_keys=ON");
-  if (read_only_) {
-    if (version < kSchemaVersion)
-      throw InputError(file_.string() + ": object database of schema version " + std::to_string(version) +
-                       ": open it once read-write (any writing command) to migrate it to " +
-                       std::to_string(kSchemaVersion));
-    return;
-  }
+  if (read_only_) return;
   if (db_.scalar_text("PRAGMA journal_mode=WAL") != "wal") db_.fail("cannot switch to the WAL journal");
   db_.exec("PRAGMA synchronous=FULL");
   if (version < kSchemaVersion) {
@@ -261,13 +291,14 @@ std::vector<ObjectRecord> ObjectDatabase::objects(bool with_clouds) const {
   while (s.step()) {
     ObjectRecord r;
     r.id = s.column_int(0);
-    r.status = object_status_from_string(s.column_text(1));
+    r.status = stored(f, [&] { return object_status_from_string(s.column_text(1)); });
     r.reason = s.column_text(2);
     r.source = s.column_text(3);
     r.centroid = Vec3d(s.column_double(4), s.column_double(5), s.column_double(6));
     r.cloud.origin = Vec3d(s.column_double(7), s.column_double(8), s.column_double(9));
+    if (s.column_int(10) < 0) throw InputError(f + ": corrupt object database: negative point count");
     r.num_points = std::size_t(s.column_int(10));
-    if (with_clouds) r.cloud.points = points_from_blob(s.column_blob(11), r.num_points, f);
+    if (with_clouds) r.cloud.points = points_from_blob(s.column_blob(11), s.column_int(10), f);
     if (!s.is_null(12)) r.T_map_gripper_grasp = transform_from_blob(s.column_blob(12), f);
     r.updates = std::size_t(s.column_int(13));
     out.push_back(std::move(r));
@@ -290,9 +321,9 @@ std::vector<PoseUpdate> ObjectDatabase::history(std::int64_t id) const {
   while (s.step())
     out.push_back({.op = s.column_int(0),
                    .time = s.column_double(1),
-                   .cause = pose_cause_from_string(s.column_text(2)),
+                   .cause = stored(file_.string(), [&] { return pose_cause_from_string(s.column_text(2)); }),
                    .transform = transform_from_blob(s.column_blob(3), file_.string()),
-                   .status = object_status_from_string(s.column_text(4)),
+                   .status = stored(file_.string(), [&] { return object_status_from_string(s.column_text(4)); }),
                    .reason = s.column_text(5)});
   return out;
 }
@@ -318,13 +349,13 @@ std::vector<StoredMapEdit> ObjectDatabase::map_edits() const {
   while (s.step()) {
     StoredMapEdit e;
     e.op = s.column_int(0);
-    e.edit.kind = map_edit_kind_from_string(s.column_text(1));
+    e.edit.kind = stored(file_.string(), [&] { return map_edit_kind_from_string(s.column_text(1)); });
     e.edit.center = Vec3d(s.column_double(2), s.column_double(3), s.column_double(4));
     e.edit.radius = s.column_double(5);
     e.edit.distance = s.column_double(6);
     e.edit.points.origin = Vec3d(s.column_double(7), s.column_double(8), s.column_double(9));
     const std::vector<std::byte> blob = s.column_blob(10);
-    e.edit.points.points = points_from_blob(blob, blob.size() / sizeof(Vec3f), file_.string());
+    e.edit.points.points = points_from_blob(blob, std::int64_t(blob.size() / sizeof(Vec3f)), file_.string());
     out.push_back(std::move(e));
   }
   return out;
