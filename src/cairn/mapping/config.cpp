@@ -6,9 +6,7 @@
 
 namespace cairn {
 namespace {
-void require(bool ok, const std::string& key, const std::string& what) {
-  if (!ok) throw ConfigError("config: mapping." + key + " " + what);
-}
+void require(bool ok, const std::string& key, const std::string& what) { require_config(ok, "mapping", key, what); }
 }  // namespace
 
 void MappingConfig::validate() const {

@@ -4,14 +4,7 @@
 
 namespace cairn {
 namespace {
-void require(bool ok, const std::string& key, const std::string& what) {
-  if (ok) return;
-  std::string msg = "config: objects.";  // built step by step: GCC 12's -Wrestrict misfires on a + b + c here
-  msg += key;
-  msg += ' ';
-  msg += what;
-  throw ConfigError(msg);
-}
+void require(bool ok, const std::string& key, const std::string& what) { require_config(ok, "objects", key, what); }
 }  // namespace
 
 void ObjectsConfig::validate() const {
