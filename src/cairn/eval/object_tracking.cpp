@@ -13,6 +13,7 @@
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/log.hpp"
 #include "cairn/core/transform.hpp"
+#include "cairn/eval/scanned_site.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/objects/pipeline.hpp"
 #include "cairn/objects/updates.hpp"
@@ -30,31 +31,7 @@ Isometry3d yaw_pose(const Vec3d& p, double yaw) {
   return T;
 }
 
-/// The true surfaces at one moment: labelled points (-1 terrain, k stone k) near the machine, a
-/// kd-tree over them, and the map-offset estimator.
-struct Truth {
-  PointCloud cloud;
-  std::unique_ptr<KdTree> tree;
-  std::unique_ptr<ObjectSurfaceTruth> offset;
-  Truth(const sim::Site& site, const Vec3d& base, double spacing, std::uint64_t seed) {
-    sim::SamplingConfig s;
-    s.spacing = spacing;
-    s.noise_sigma = 0.0;
-    const sim::SampledSite sampled = sim::sample_site(site, s, seed);
-    std::vector<std::uint32_t> keep;
-    for (std::size_t i = 0; i < sampled.cloud.size(); ++i)
-      if ((sampled.cloud.world(i) - base).head<2>().norm() < kTruthRadius) keep.push_back(std::uint32_t(i));
-    cloud = select(sampled.cloud, keep);
-    tree = std::make_unique<KdTree>(cloud.points);
-    offset = std::make_unique<ObjectSurfaceTruth>(cloud);
-  }
-  /// Label of the nearest true surface within `near` of a world point, or kLabelNone.
-  [[nodiscard]] std::int32_t label_near(const Vec3d& world, double near) const {
-    float d2 = 0.0f;
-    const std::uint32_t i = tree->nearest((world - cloud.origin).cast<float>(), &d2);
-    return double(d2) <= near * near ? cloud.labels[i] : kLabelNone;
-  }
-};
+using Truth = SurfaceTruth;
 
 /// The cumulative transform of an object's history after its creation (world frame).
 Isometry3d db_motion(const std::vector<PoseUpdate>& history) {
@@ -81,8 +58,6 @@ class Tracker {
     Isometry3d M = Isometry3d::Identity();          // true motion since then (world)
     double purity = 0.0;                            // share of its points on its stone
   };
-  void scan(double t_from, double t_to);
-  [[nodiscard]] Isometry3d E_state(double t) const;  // estimate frame -> world at time t
   [[nodiscard]] std::unique_ptr<Truth> truth() const;
   [[nodiscard]] RemovalCounts removal(const PointCloud& map, const MapEdit& edit, const Truth& t,
                                       const Isometry3d& E, int stone) const;
@@ -97,18 +72,11 @@ class Tracker {
 
   const ObjectTrackingConfig& cfg_;
   const TrackingProgress& progress_;
-  sim::SimulationConfig sim_;
-  sim::SimulatedWorld world_;
-  sim::StateEstimate state_;
-  std::vector<sim::SweepSchedule> schedule_;
-  std::size_t next_ = 0;
-  std::unique_ptr<Mapper> mapper_;
+  ScanningMachine machine_;
   std::unique_ptr<ObjectDatabase> db_;
   std::vector<Tracked> tracked_;
   std::vector<Vec3d> slots_odd_, slots_even_;  // flattest first
   PointCloud former_;  // true surfaces of moved stones at their earlier poses (world)
-  double now_ = 0.0;
-  Vec3d base_ = Vec3d::Zero();
   std::filesystem::path temporary_;  // the default database, removed with the tracker
 
  public:
@@ -129,20 +97,14 @@ sim::SimulationConfig at_rest(const ObjectTrackingConfig& c) {
   return s;
 }
 
+/// Simulated time the experiment needs: the initial scan, then every move and rescan.
+double duration(const ObjectTrackingConfig& c) {
+  const int moves = c.max_moves_per_round > 0 ? c.max_moves_per_round : c.simulation.site.stones.count;
+  return c.initial_scan + c.rounds * moves * (c.carry_time + c.rescan) + 1.0;
+}
+
 Tracker::Tracker(const ObjectTrackingConfig& c, const TrackingProgress& progress)
-    : cfg_(c), progress_(progress), sim_(at_rest(c)), world_(sim::make_world(sim_, c.seed)) {
-  base_ = world_.excavator.T_world_base(0.0).translation();
-  const int moves = c.max_moves_per_round > 0 ? c.max_moves_per_round : int(world_.site.stones.size());
-  const double duration = c.initial_scan + c.rounds * moves * (c.carry_time + c.rescan) + 1.0;
-  const sim::Excavator& ex = world_.excavator;
-  state_ = sim::simulate_state_estimation([&ex](double t) { return ex.T_world_cabin(t); },
-                                          [&ex](double t) { return ex.joints_at(t); }, ex.model(), 0.0, duration,
-                                          sim_.state, c.seed);
-  schedule_ = sim::sweep_schedule(sim_.lidar, duration, c.seed);
-  MapperSetup setup{.robot = ex.model(), .T_cabin_sensor = {{"H", ex.T_cabin_H()}, {"V", ex.T_cabin_V()}}};
-  mapper_ = std::make_unique<Mapper>(std::move(setup), c.mapping);
-  mapper_->add_state_estimates(state_.estimate);
-  mapper_->add_joint_states(state_.joints);
+    : cfg_(c), progress_(progress), machine_(at_rest(c), c.seed, duration(c), c.mapping) {
   std::filesystem::path file = c.database;
   if (file.empty()) {
     file = std::filesystem::temp_directory_path() / ("cairn_tracking_" + std::to_string(::getpid()) + ".db");
@@ -153,55 +115,31 @@ Tracker::Tracker(const ObjectTrackingConfig& c, const TrackingProgress& progress
   db_ = std::make_unique<ObjectDatabase>(file, ObjectDatabase::Mode::create);
   result.scenario = c.scenario;
   result.seed = c.seed;
-  result.stones = int(world_.site.stones.size());
+  result.stones = int(machine_.world().site.stones.size());
   plan_slots();
 }
 
-void Tracker::scan(double t_from, double t_to) {
-  const double period = 1.0 / sim_.lidar.rate;
-  while (next_ < schedule_.size() && schedule_[next_].t_start < t_from) ++next_;  // busy carrying
-  for (; next_ < schedule_.size() && schedule_[next_].t_start + period <= t_to; ++next_) {
-    const sim::Sweep sweep = sim::simulate_scheduled_sweep(world_, sim_.lidar, schedule_[next_], cfg_.seed);
-    PointCloud cloud;
-    cloud.points = sweep.points;
-    cloud.times = sweep.times;
-    mapper_->add_sweep(sweep.sensor, cloud, sweep.t_start, sweep.t_end);
-  }
-  now_ = t_to;
-}
-
-Isometry3d Tracker::E_state(double t) const {
-  return interpolate_pose(state_.truth, t) * interpolate_pose(state_.estimate, t).inverse();
-}
-
 std::unique_ptr<Truth> Tracker::truth() const {
-  return std::make_unique<Truth>(world_.site, base_, cfg_.truth_spacing, cfg_.seed);
+  return std::make_unique<Truth>(machine_.world().site, machine_.base(), kTruthRadius, cfg_.truth_spacing, cfg_.seed);
 }
 
 void Tracker::initial_scan() {
   if (progress_) progress_("initial scan", 0, 1);
-  scan(0.0, cfg_.initial_scan);
+  machine_.scan(0.0, cfg_.initial_scan);
 }
 
 int Tracker::stone_of(const PointCloud& cloud, const Truth& t, const Isometry3d& E, double* share) const {
-  std::vector<int> votes(world_.site.stones.size(), 0);
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const std::int32_t l = t.label_near(E * cloud.world(i), cfg_.score_near);
-    if (l >= 0 && std::size_t(l) < votes.size()) ++votes[std::size_t(l)];
-  }
-  const auto best = std::max_element(votes.begin(), votes.end());
-  if (share) *share = best == votes.end() || cloud.empty() ? 0.0 : double(*best) / double(cloud.size());
-  return best == votes.end() || 2 * *best < int(cloud.size()) ? -1 : int(best - votes.begin());
+  return t.stone_of(cloud, E, cfg_.score_near, machine_.world().site.stones.size(), share);
 }
 
 void Tracker::populate() {
-  const PointCloud map = mapper_->map();
+  const PointCloud map = machine_.mapper().map();
   const std::vector<PointCloud> segments = object_segments(map, segment(map, cfg_.segmentation));
-  const ObjectsUpdate u = update_objects(*db_, map, segments, cfg_.objects.association, now_, "segmentation");
+  const ObjectsUpdate u = update_objects(*db_, map, segments, cfg_.objects.association, machine_.now(), "segmentation");
   const auto t = truth();
   const Isometry3d E0 = t->offset->map_offset(map);
   // Each object to the stone most of its points lie on (world = E0 · map).
-  std::vector<int> objects_per_stone(world_.site.stones.size(), 0);
+  std::vector<int> objects_per_stone(machine_.world().site.stones.size(), 0);
   std::vector<Tracked> candidates;
   for (const ObjectRecord& r : db_->objects()) {
     double purity = 0.0;
@@ -259,12 +197,12 @@ void Tracker::plan_slots() {
   const double s = cfg_.slot_spacing;
   for (double x = -cfg_.slot_max_distance; x <= cfg_.slot_max_distance; x += s)
     for (double y = -cfg_.slot_max_distance; y <= cfg_.slot_max_distance; y += s) {
-      const Eigen::Vector2d xy = base_.head<2>() + Eigen::Rotation2Dd(heading) * Eigen::Vector2d(x, y);
+      const Eigen::Vector2d xy = machine_.base().head<2>() + Eigen::Rotation2Dd(heading) * Eigen::Vector2d(x, y);
       const double d = Eigen::Vector2d(x, y).norm(), angle = std::abs(std::atan2(y, x)) * kDeg;
       if (d < cfg_.slot_min_distance || d > cfg_.slot_max_distance || angle > cfg_.slot_max_angle_deg) continue;
-      const Vec3d p(xy.x(), xy.y(), world_.site.terrain.height(xy.x(), xy.y()));
+      const Vec3d p(xy.x(), xy.y(), machine_.world().site.terrain.height(xy.x(), xy.y()));
       (d >= cfg_.slot_split_distance ? outer : inner)
-          .emplace_back(ground_unevenness(world_.site.terrain, xy, cfg_.slot_footprint), p);
+          .emplace_back(ground_unevenness(machine_.world().site.terrain, xy, cfg_.slot_footprint), p);
     }
   for (auto* v : {&outer, &inner}) std::sort(v->begin(), v->end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   for (const auto& [_, p] : outer) slots_odd_.push_back(p);
@@ -272,9 +210,9 @@ void Tracker::plan_slots() {
 }
 
 bool Tracker::slot_clear(const Eigen::Vector2d& xy, int stone, double half) const {
-  for (std::size_t j = 0; j < world_.site.stones.size(); ++j) {
+  for (std::size_t j = 0; j < machine_.world().site.stones.size(); ++j) {
     if (int(j) == stone) continue;
-    const auto& b = world_.site.stones[j].bounds;
+    const auto& b = machine_.world().site.stones[j].bounds;
     const Eigen::Vector2d q = xy.cwiseMax(b.min().head<2>()).cwiseMin(b.max().head<2>());
     if ((q - xy).norm() <= half + cfg_.slot_clearance) return false;
   }
@@ -282,7 +220,7 @@ bool Tracker::slot_clear(const Eigen::Vector2d& xy, int stone, double half) cons
 }
 
 std::optional<Vec3d> Tracker::free_slot(int round, int stone) const {
-  const sim::Stone& s = world_.site.stones[std::size_t(stone)];
+  const sim::Stone& s = machine_.world().site.stones[std::size_t(stone)];
   const double half = 0.5 * (s.bounds.max() - s.bounds.min()).head<2>().norm();
   // The round's slots first, then the others (stones that rolled may sit on the round's slots).
   for (const auto* slots : round % 2 == 1 ? std::array{&slots_odd_, &slots_even_} : std::array{&slots_even_, &slots_odd_})
@@ -328,8 +266,8 @@ bool Tracker::move(int round, Tracked& tr) {
     return false;
   }
   const Vec3d slot = *free;
-  MoveRecord m{.round = round, .stone = tr.stone, .object = tr.object, .purity = tr.purity, .time = now_};
-  const PointCloud map = mapper_->map();
+  MoveRecord m{.round = round, .stone = tr.stone, .object = tr.object, .purity = tr.purity, .time = machine_.now()};
+  const PointCloud map = machine_.mapper().map();
   const auto before = truth();
   const Isometry3d E = before->offset->map_offset(map);
   // Grasp (Sec. 4.5): the gripper at the object's centroid, both edits measured, one applied.
@@ -339,25 +277,25 @@ bool Tracker::move(int round, Tracked& tr) {
   voxels.method = "object_voxels";
   m.sphere = removal(map, grasp_map_edit(obj, sphere), *before, E, tr.stone);
   m.object_voxels = removal(map, grasp_map_edit(obj, voxels), *before, E, tr.stone);
-  const Operation grasp = grasp_operation(obj, T_MG_grasp, now_, cfg_.objects.grasp_removal);
+  const Operation grasp = grasp_operation(obj, T_MG_grasp, machine_.now(), cfg_.objects.grasp_removal);
   (void)db_->commit(grasp);
-  for (const MapEdit& e : grasp.map_edits) (void)mapper_->apply_edit(e);
+  for (const MapEdit& e : grasp.map_edits) (void)machine_.mapper().apply_edit(e);
   for (std::size_t i = 0; i < before->cloud.size(); ++i)
     if (before->cloud.labels[i] == tr.stone) former_.points.push_back((before->cloud.world(i) - former_.origin).cast<float>());
   // Carry: commanded in the map frame, executed where the state estimate puts the gripper.
-  const double t_release = now_ + cfg_.carry_time;
+  const double t_release = machine_.now() + cfg_.carry_time;
   // The stone keeps its seat: tilted with the ground from under it to under the slot, then turned.
-  const sim::Terrain& ground = world_.site.terrain;
+  const sim::Terrain& ground = machine_.world().site.terrain;
   const Eigen::Quaterniond tilt = Eigen::Quaterniond::FromTwoVectors(ground.normal(obj.centroid.x(), obj.centroid.y()),
                                                                      ground.normal(slot.x(), slot.y()));
   Isometry3d T_MG_release = yaw_pose(Vec3d(slot.x(), slot.y(), obj.centroid.z()), cfg_.turn_deg / kDeg);
   T_MG_release.linear() = tilt.toRotationMatrix() * T_MG_release.linear();
-  const Isometry3d commanded = E_state(t_release) * T_MG_release * T_MG_grasp.inverse() * E_state(now_).inverse();
-  const sim::CarryResult carry = sim::carry_and_release(world_, std::size_t(tr.stone), commanded, cfg_.drop_height, sim_);
+  const Isometry3d commanded = machine_.E_state(t_release) * T_MG_release * T_MG_grasp.inverse() * machine_.E_state(machine_.now()).inverse();
+  const sim::CarryResult carry = sim::carry_and_release(machine_.world(), std::size_t(tr.stone), commanded, cfg_.drop_height, machine_.config());
   for (Tracked& other : tracked_)
     other.M = (other.stone == tr.stone ? carry.total : carry.settling[std::size_t(other.stone)]) * other.M;
   const Isometry3d settle = carry.total * carry.carried.inverse();
-  const Vec3d c_now = world_.site.stones[std::size_t(tr.stone)].centroid;  // after the settling
+  const Vec3d c_now = machine_.world().site.stones[std::size_t(tr.stone)].centroid;  // after the settling
   m.settle_m = (c_now - settle.inverse() * c_now).norm();
   m.settle_deg = rotation_angle(settle.linear()) * kDeg;
   m.moved_m = (c_now - carry.total.inverse() * c_now).norm();
@@ -369,12 +307,12 @@ bool Tracker::move(int round, Tracked& tr) {
   (void)db_->commit(release_operation(*db_->object(tr.object), T_MG_release, t_release));
   score(m, tr, E, /*predicted=*/true);
   // Rescan, re-align (Sec. 4.5), score.
-  scan(t_release, t_release + cfg_.rescan);
-  const PointCloud rescanned = mapper_->map();
+  machine_.scan(t_release, t_release + cfg_.rescan);
+  const PointCloud rescanned = machine_.mapper().map();
   const auto after = truth();
   const Isometry3d E_after = after->offset->map_offset(rescanned);
   const RealignResult r = relocate_object(*db_->object(tr.object), rescanned, cfg_.objects, cfg_.segmentation);
-  (void)db_->commit(realign_operation(*db_->object(tr.object), r, now_));
+  (void)db_->commit(realign_operation(*db_->object(tr.object), r, machine_.now()));
   m.found = r.found;
   m.reason = r.reason;
   score(m, tr, E_after, /*predicted=*/false);
@@ -398,9 +336,9 @@ void Tracker::run_round(int round) {
     rr.max_error_deg = std::max(rr.max_error_deg, m.error_deg);
   }
   // Re-segmentation of the rescanned map: every segment should be a known object.
-  const PointCloud map = mapper_->map();
+  const PointCloud map = machine_.mapper().map();
   const std::vector<PointCloud> segments = object_segments(map, segment(map, cfg_.segmentation));
-  const ObjectsUpdate u = update_objects(*db_, map, segments, cfg_.objects.association, now_, "segmentation");
+  const ObjectsUpdate u = update_objects(*db_, map, segments, cfg_.objects.association, machine_.now(), "segmentation");
   rr.matched = u.association.matched.size();
   rr.new_objects = u.association.new_segments.size();
   rr.vanished = u.association.vanished.size();

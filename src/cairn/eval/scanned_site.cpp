@@ -1,0 +1,81 @@
+#include "cairn/eval/scanned_site.hpp"
+
+#include <algorithm>
+
+#include "cairn/core/transform.hpp"
+#include "cairn/segmentation/segmenter.hpp"
+
+namespace cairn::eval {
+namespace {
+
+sim::SimulationConfig at_rest(sim::SimulationConfig c) {
+  c.settle_in_physics = true;  // one world at rest for the sensors, the physics and the truth
+  return c;
+}
+
+}  // namespace
+
+SurfaceTruth::SurfaceTruth(const sim::Site& site, const Vec3d& base, double radius, double spacing, std::uint64_t seed) {
+  sim::SamplingConfig s;
+  s.spacing = spacing;
+  s.noise_sigma = 0.0;
+  const sim::SampledSite sampled = sim::sample_site(site, s, seed);
+  std::vector<std::uint32_t> keep;
+  for (std::size_t i = 0; i < sampled.cloud.size(); ++i)
+    if ((sampled.cloud.world(i) - base).head<2>().norm() < radius) keep.push_back(std::uint32_t(i));
+  cloud = select(sampled.cloud, keep);
+  tree = std::make_unique<KdTree>(cloud.points);
+  offset = std::make_unique<ObjectSurfaceTruth>(cloud);
+}
+
+std::int32_t SurfaceTruth::label_near(const Vec3d& world, double near) const {
+  float d2 = 0.0f;
+  const std::uint32_t i = tree->nearest((world - cloud.origin).cast<float>(), &d2);
+  return double(d2) <= near * near ? cloud.labels[i] : kLabelNone;
+}
+
+int SurfaceTruth::stone_of(const PointCloud& c, const Eigen::Isometry3d& E, double near, std::size_t stones,
+                           double* share) const {
+  std::vector<int> votes(stones, 0);
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const std::int32_t l = label_near(E * c.world(i), near);
+    if (l >= 0 && std::size_t(l) < votes.size()) ++votes[std::size_t(l)];
+  }
+  const auto best = std::max_element(votes.begin(), votes.end());
+  if (share) *share = best == votes.end() || c.empty() ? 0.0 : double(*best) / double(c.size());
+  return best == votes.end() || 2 * *best < int(c.size()) ? -1 : int(best - votes.begin());
+}
+
+ScanningMachine::ScanningMachine(const sim::SimulationConfig& config, std::uint64_t seed, double duration,
+                                 const MappingConfig& mapping)
+    : sim_(at_rest(config)), seed_(seed), world_(sim::make_world(sim_, seed)) {
+  base_ = world_.excavator.T_world_base(0.0).translation();
+  const sim::Excavator& ex = world_.excavator;
+  state_ = sim::simulate_state_estimation([&ex](double t) { return ex.T_world_cabin(t); },
+                                          [&ex](double t) { return ex.joints_at(t); }, ex.model(), 0.0, duration,
+                                          sim_.state, seed);
+  schedule_ = sim::sweep_schedule(sim_.lidar, duration, seed);
+  MapperSetup setup{.robot = ex.model(), .T_cabin_sensor = {{"H", ex.T_cabin_H()}, {"V", ex.T_cabin_V()}}};
+  mapper_ = std::make_unique<Mapper>(std::move(setup), mapping);
+  mapper_->add_state_estimates(state_.estimate);
+  mapper_->add_joint_states(state_.joints);
+}
+
+void ScanningMachine::scan(double t_from, double t_to) {
+  const double period = 1.0 / sim_.lidar.rate;
+  while (next_ < schedule_.size() && schedule_[next_].t_start < t_from) ++next_;  // busy carrying
+  for (; next_ < schedule_.size() && schedule_[next_].t_start + period <= t_to; ++next_) {
+    const sim::Sweep sweep = sim::simulate_scheduled_sweep(world_, sim_.lidar, schedule_[next_], seed_);
+    PointCloud cloud;
+    cloud.points = sweep.points;
+    cloud.times = sweep.times;
+    mapper_->add_sweep(sweep.sensor, cloud, sweep.t_start, sweep.t_end);
+  }
+  now_ = t_to;
+}
+
+Eigen::Isometry3d ScanningMachine::E_state(double t) const {
+  return interpolate_pose(state_.truth, t) * interpolate_pose(state_.estimate, t).inverse();
+}
+
+}  // namespace cairn::eval

@@ -1,0 +1,60 @@
+#pragma once
+// The simulated machine scanning one persistent world, shared by the experiments of the
+// evaluation library: a settled site (the world at rest), the state estimate with its GNSS/INS
+// error, both LiDARs' sweeps streamed into one Mapper, and the true surfaces for scoring.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+
+#include "cairn/core/kdtree.hpp"
+#include "cairn/mapping/config.hpp"
+#include "cairn/mapping/mapper.hpp"
+#include "cairn/sim/simulation.hpp"
+
+namespace cairn::eval {
+
+/// The true surfaces at one moment: labelled points (-1 terrain, k stone k) within `radius` of
+/// `base` (horizontally), a kd-tree over them, and the map-offset estimator.
+struct SurfaceTruth {
+  PointCloud cloud;
+  std::unique_ptr<KdTree> tree;
+  std::unique_ptr<ObjectSurfaceTruth> offset;
+  SurfaceTruth(const sim::Site& site, const Vec3d& base, double radius, double spacing, std::uint64_t seed);
+  /// Label of the nearest true surface within `near` of a world point, or kLabelNone.
+  [[nodiscard]] std::int32_t label_near(const Vec3d& world, double near) const;
+  /// The stone most of a map-frame cloud lies on (E: map -> world), or -1; the share in *share.
+  [[nodiscard]] int stone_of(const PointCloud& cloud, const Eigen::Isometry3d& E, double near, std::size_t stones,
+                             double* share = nullptr) const;
+};
+
+/// One settled world (settle_in_physics forced on), its state estimate over [0, duration] and the
+/// sweep schedule of both sensors, streamed into a Mapper on demand.
+class ScanningMachine {
+ public:
+  ScanningMachine(const sim::SimulationConfig& config, std::uint64_t seed, double duration, const MappingConfig& mapping);
+  /// Feeds the sweeps that start in [t_from, t_to) and end by t_to (earlier ones are skipped: the
+  /// machine was busy).
+  void scan(double t_from, double t_to);
+  /// Estimate frame -> world at time t: where the machine's own state estimate puts what it
+  /// commands (the map frame is the estimate's).
+  [[nodiscard]] Eigen::Isometry3d E_state(double t) const;
+  [[nodiscard]] Vec3d base() const { return base_; }
+  [[nodiscard]] double now() const { return now_; }
+  [[nodiscard]] const sim::SimulationConfig& config() const { return sim_; }
+  [[nodiscard]] sim::SimulatedWorld& world() { return world_; }
+  [[nodiscard]] const sim::SimulatedWorld& world() const { return world_; }
+  [[nodiscard]] Mapper& mapper() { return *mapper_; }
+
+ private:
+  sim::SimulationConfig sim_;
+  std::uint64_t seed_;
+  sim::SimulatedWorld world_;
+  sim::StateEstimate state_;
+  std::vector<sim::SweepSchedule> schedule_;
+  std::size_t next_ = 0;
+  std::unique_ptr<Mapper> mapper_;
+  Vec3d base_ = Vec3d::Zero();
+  double now_ = 0.0;
+};
+
+}  // namespace cairn::eval
