@@ -7,6 +7,7 @@
 #include "cairn/core/config.hpp"
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
+#include "cairn/grasp/config.hpp"
 #include "cairn/mapping/config.hpp"
 #include "cairn/objects/config.hpp"
 #include "cairn/registration/global_registration.hpp"
@@ -24,6 +25,7 @@ struct AppConfig {
   ScaleRecoveryConfig scale;
   GlobalRegistrationConfig registration;
   ObjectsConfig objects;
+  grasp::GraspConfig grasp;
   sim::SimulationConfig simulation;  // generic defaults; `cairn simulate` starts from its scenario
 
   template <class V>
@@ -35,6 +37,7 @@ struct AppConfig {
     v("scale", scale, "metric scale of the drone SfM model from camera positions (Sec. 4.1)");
     v("registration", registration, "segment-based global registration (Sec. 4.4)");
     v("objects", objects, "object database: map updates under manipulation (Sec. 4.5)");
+    v("grasp", grasp, "grasp pose planning (Sec. 5)");
     v("simulation", simulation, "simulator: site, excavator, LiDARs, state estimation, drone");
   }
 };

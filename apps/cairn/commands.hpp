@@ -16,4 +16,6 @@ void add_protocol_command(CLI::App& app, std::function<int()>& run);
 void add_grasp_trial_command(CLI::App& app, std::function<int()>& run);
 void add_grasp_baseline_command(CLI::App& app, std::function<int()>& run);
 void add_objects_command(CLI::App& app, std::function<int()>& run);
+void add_grasp_command(CLI::App& app, std::function<int()>& run);
+void add_grasp_trials_command(CLI::App& app, std::function<int()>& run);
 }  // namespace cairn::app

@@ -25,6 +25,8 @@ int main(int argc, char** argv) {
   app::add_grasp_trial_command(app, run);
   app::add_grasp_baseline_command(app, run);
   app::add_objects_command(app, run);
+  app::add_grasp_command(app, run);
+  app::add_grasp_trials_command(app, run);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

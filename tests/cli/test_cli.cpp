@@ -460,3 +460,36 @@ TEST(Cli, GraspBaselinePrintsTheTableAndWritesEveryTrial) {
   EXPECT_EQ(j["summary"]["trials"].get<int>(), 7);
   EXPECT_EQ(run("grasp-baseline --scenarios nope --seeds 1").code, 2);  // unknown scenario
 }
+
+TEST(Cli, GraspPlansForTheLargestObjectAndRefusesBadInput) {
+  const auto dir = test::temp_dir("cli_grasp");
+  const std::string db = (dir / "objects.db").string(), scene = small_scene(dir).string();
+  ASSERT_EQ(run("objects update --db " + db + " --map " + scene).code, 0);
+  CmdResult r = run("grasp --map " + scene + " --db " + db + " --out " + (dir / "out").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* k : {"object", "grasps", "counts", "timings_ms"}) EXPECT_TRUE(j.contains(k)) << k;
+  ASSERT_FALSE(j["grasps"].empty());
+  const auto& g = j["grasps"][0];
+  EXPECT_EQ(g["rank"], 1);
+  EXPECT_EQ(g["T_map_gripper"].size(), 4u);
+  EXPECT_EQ(g["contacts"].size(), 2u);
+  EXPECT_TRUE(g["force_closure"].get<bool>());
+  ASSERT_EQ(g["parts"].size(), 3u);  // palm and two jaws, 8 corners each
+  for (const auto& part : g["parts"]) EXPECT_EQ(part["vertices"].size(), 8u);
+  for (const char* k : {"align_rad", "enclose_m", "dist_m"}) EXPECT_TRUE(g["costs"].contains(k)) << k;
+  EXPECT_GE(j["counts"]["hypotheses"].get<int>(), j["counts"]["force_closure"].get<int>());
+  for (const char* f : {"planning_cloud.ply", "grasp_1.ply", "costs.png"})
+    EXPECT_TRUE(std::filesystem::exists(dir / "out" / f)) << f;
+  EXPECT_EQ(io::read_ply_mesh(dir / "out" / "grasp_1.ply").triangles.size(), 36u);
+  // Bad input: exit 2; nothing graspable (three points in the air): exit 3.
+  EXPECT_EQ(run("grasp --map " + scene + " --object-cloud " + (dir / "missing.ply").string()).code, 2);
+  EXPECT_EQ(run("grasp --map " + scene + " --db " + db + " --object-cloud " + scene).code, 2);
+  EXPECT_EQ(run("grasp --map " + scene + " --db " + db + " --object 999").code, 2);
+  PointCloud tiny;
+  tiny.points = {{10.0f, 10.0f, 0.2f}, {10.01f, 10.0f, 0.2f}, {10.0f, 10.01f, 0.2f}};
+  io::write_ply(dir / "tiny.ply", tiny);
+  r = run("grasp --map " + (dir / "tiny.ply").string() + " --object-cloud " + (dir / "tiny.ply").string());
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_TRUE(nlohmann::json::parse(r.out)["grasps"].empty());
+}

@@ -1,0 +1,409 @@
+#include "cairn/grasp/candidates.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <numeric>
+#include <random>
+
+#include <tbb/parallel_for.h>
+
+#include "cairn/core/kdtree.hpp"
+#include "cairn/core/voxel_grid.hpp"
+
+namespace cairn::grasp {
+namespace {
+
+using Eigen::Isometry3d;
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+/// The jaws' inner faces at one angle, in G's xy-plane: y = ∓(h + x tan(angle)) up to the tips.
+struct JawLines {
+  double h, L, H;  // half hinge spacing, jaw length, jaw height
+  double tan_a = 0.0, reach = 0.0;
+  JawLines at(double angle) const {
+    JawLines j = *this;
+    j.tan_a = std::tan(angle);
+    j.reach = L * std::cos(angle);
+    return j;
+  }
+  [[nodiscard]] double left(double x) const { return -h - x * tan_a; }
+  [[nodiscard]] double right(double x) const { return h + x * tan_a; }
+};
+
+Matrix3d axis_rotation(const Vector3d& axis, double deg) { return Eigen::AngleAxisd(deg * kDeg, axis).toRotationMatrix(); }
+
+/// Entry and exit advance of a point through one box (empty when in > out).
+std::pair<double, double> sweep_interval(const SweptBox& b, const Vector3d& q) {
+  const Vector3d u = b.axes.transpose() * (q - b.center);
+  double lo = -kInf, hi = kInf;
+  for (int i = 0; i < 3; ++i) {
+    if (std::abs(b.dir[i]) < 1e-12) {
+      if (std::abs(u[i]) > b.half[i]) return {kInf, -kInf};
+      continue;
+    }
+    double t1 = (-b.half[i] - u[i]) / b.dir[i], t2 = (b.half[i] - u[i]) / b.dir[i];
+    if (t1 > t2) std::swap(t1, t2);
+    lo = std::max(lo, t1);
+    hi = std::min(hi, t2);
+    if (lo > hi) return {kInf, -kInf};
+  }
+  return {lo, hi};
+}
+
+/// Largest |y| and |z| of the gripper's vertices in G.
+Eigen::Vector2d lateral_extent(const std::vector<ConvexPart>& parts) {
+  Eigen::Vector2d e = Eigen::Vector2d::Zero();
+  for (const ConvexPart& p : parts)
+    for (const Vector3d& v : p.vertices) e = e.cwiseMax(Eigen::Vector2d(std::abs(v.y()), std::abs(v.z())));
+  return e;
+}
+
+/// Largest distance of a gripper vertex from the origin of G.
+double part_reach(const std::vector<ConvexPart>& parts) {
+  double r = 0.0;
+  for (const ConvexPart& p : parts)
+    for (const Vector3d& v : p.vertices) r = std::max(r, v.norm());
+  return r;
+}
+
+/// In front of the palm, within the jaws' length and height: where a jaw can touch.
+bool in_jaw_range(const GripperConfig& g, const Vector3d& q) {
+  return q.x() > 0.0 && q.x() <= g.jaw_length && std::abs(q.z()) <= 0.5 * g.jaw_height;
+}
+
+std::vector<std::uint32_t> choose_samples(const PointCloud& cloud, int n, unsigned seed) {
+  std::vector<std::uint32_t> object;
+  for (std::size_t i = 0; i < cloud.size(); ++i)
+    if (cloud.labels[i] == kObject) object.push_back(std::uint32_t(i));
+  std::mt19937 rng(seed);
+  std::shuffle(object.begin(), object.end(), rng);
+  if (object.size() > std::size_t(n)) object.resize(std::size_t(n));
+  return object;
+}
+
+/// The rotated gripper orientations of one sample (Sec. 5.3): G's x = -x_F (towards the
+/// object), y = y_F, z = -z_F, then rotated about y, z and x in the configured steps.
+std::vector<Matrix3d> orientations(const Matrix3d& F, const CandidateConfig& c) {
+  Matrix3d G;
+  G << -F.col(0), F.col(1), -F.col(2);
+  std::vector<Matrix3d> out;
+  for (const double b : c.rotations_y_deg)
+    for (const double a : c.rotations_z_deg)
+      for (const double g : c.rotations_x_deg)
+        out.push_back(G * axis_rotation(Vector3d::UnitY(), b) * axis_rotation(Vector3d::UnitZ(), a) *
+                      axis_rotation(Vector3d::UnitX(), g));
+  return out;
+}
+
+struct SampleContext {
+  const PlanningCloud& pc;
+  const GripperConfig& gripper;
+  const GraspConfig& config;
+  const KdTree& tree;               // over pc.cloud.points
+  const std::vector<Vec3f>& coarse;  // the collision cloud (collision_voxels)
+  const std::vector<std::int32_t>& coarse_labels;
+  const KdTree& coarse_tree;
+};
+
+/// The collision points around one sample (relative to it) and the fixed settings of its poses.
+struct SampleNeighbourhood {
+  Vector3d p;                 // the sample point
+  std::vector<Vec3f> around;  // collision points relative to p
+  std::vector<bool> object;   // ... which lie on the object
+  double start = 0.0;         // the push starts with the palm this far before p
+};
+
+/// The opening that clears the object's points in the jaws' band (|z| <= jaw height / 2) across
+/// the approach axis by the padding on both sides (GPD's hand is fixed; an angular gripper's
+/// pre-grasp opening is free).
+double fitted_opening(const SampleNeighbourhood& n, const Eigen::Matrix3f& Rt, const GripperConfig& g, double padding) {
+  float half = 0.0f;
+  for (std::size_t k = 0; k < n.around.size(); ++k) {
+    if (!n.object[k] || std::abs(Rt.row(2).dot(n.around[k])) > float(0.5 * g.jaw_height)) continue;
+    half = std::max(half, std::abs(Rt.row(1).dot(n.around[k])));
+  }
+  return std::clamp(2.0 * (double(half) + padding), opening_at(g, min_jaw_angle(g)), max_opening(g));
+}
+
+/// One orientation at one pre-grasp opening: pushed, then closed (Sec. 5.3).
+void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matrix3d& R, double opening, int sample_index,
+              std::vector<Candidate>& out, CandidateCounts& counts) {
+  const CandidateConfig& cc = ctx.config.candidates;
+  const double voxel = ctx.config.cloud.voxel, padding = cc.padding_voxels * voxel;
+  const std::vector<ConvexPart> parts = gripper_parts(ctx.gripper, opening);
+  const std::vector<SweptBox> boxes = swept_boxes(parts, padding);
+  const Eigen::Vector2d lateral = lateral_extent(parts) + Eigen::Vector2d::Constant(padding);
+  ++counts.poses;
+  const Vector3d o_start = n.p - n.start * R.col(0);
+  // Collision points in G at the start; those beside the gripper's lateral extent can never be touched.
+  const Eigen::Matrix3f Rt = R.transpose().cast<float>();
+  const float x0 = float(n.start), y_max = float(lateral.x()), z_max = float(lateral.y());
+  std::vector<Vector3d> start_G;
+  for (const Vec3f& d : n.around) {
+    const float y = Rt.row(1).dot(d);
+    if (std::abs(y) > y_max) continue;
+    const float z = Rt.row(2).dot(d);
+    if (std::abs(z) > z_max) continue;
+    start_G.emplace_back(double(Rt.row(0).dot(d) + x0), double(y), double(z));
+  }
+  const std::optional<double> s = advance_to_contact(boxes, start_G);
+  if (!s || !std::isfinite(*s)) return;  // collision at the start, or nothing touched
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = o_start + (*s - cc.clearance_voxels * voxel) * R.col(0);
+  // The closing on the full-resolution cloud.
+  Neighbors fine;
+  LocalPoints local;
+  ctx.tree.radius(closing_centre(ctx.gripper, T).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
+  gather_local(ctx.pc.cloud, fine.indices, T, ctx.gripper, local);
+  const double open_angle = jaw_angle_for(ctx.gripper, opening);
+  const JawLines open = JawLines{.h = 0.5 * ctx.gripper.hinge_spacing, .L = ctx.gripper.jaw_length,
+                                 .H = ctx.gripper.jaw_height}.at(open_angle);
+  const auto in_region = std::count_if(local.object.begin(), local.object.end(), [&](const Vector3d& q) {
+    return q.x() <= open.reach && q.y() > open.left(q.x()) && q.y() < open.right(q.x());  // in_closing_region
+  });
+  if (std::size_t(in_region) < cc.min_object_points) return;
+  ++counts.hypotheses;
+  Closing closing = close_jaws(ctx.gripper, open_angle, local.object, local.normals, local.environment,
+                               ctx.config.force_closure.patch_voxels * voxel);
+  if (!closing.closed) return;
+  ++counts.collision_free;
+  out.push_back({.T = T, .opening = opening, .sample = sample_index, .object_points = std::size_t(in_region),
+                 .closing = std::move(closing)});
+}
+
+/// Candidates of one sample point: every orientation at every configured opening (and the
+/// fitted one).
+void sample_candidates(const SampleContext& ctx, std::uint32_t sample, int sample_index, std::vector<Candidate>& out,
+                       CandidateCounts& counts) {
+  const PointCloud& cloud = ctx.pc.cloud;
+  const CandidateConfig& cc = ctx.config.candidates;
+  const double voxel = ctx.config.cloud.voxel, padding = cc.padding_voxels * voxel;
+  Neighbors nb;
+  ctx.tree.radius(cloud.points[sample], float(cc.lrf_radius_voxels * voxel), nb);
+  std::vector<Vec3f> normals;
+  for (const std::uint32_t j : nb.indices)
+    if (cloud.labels[j] == kObject) normals.push_back(cloud.normals[j]);
+  const Matrix3d F = local_reference_frame(normals, cloud.normals[sample].cast<double>());
+  SampleNeighbourhood n{.p = cloud.points[sample].cast<double>(),
+                        .start = ctx.gripper.jaw_length + cc.start_margin_voxels * cc.collision_voxels * voxel};
+  const double reach = part_reach(gripper_parts(ctx.gripper, max_opening(ctx.gripper)));  // the widest
+  ctx.coarse_tree.radius(cloud.points[sample], float(n.start + reach + 2.0 * padding), nb);
+  for (const std::uint32_t i : nb.indices) {
+    n.around.push_back(ctx.coarse[i] - cloud.points[sample]);
+    n.object.push_back(ctx.coarse_labels[i] == kObject);
+  }
+  for (const Matrix3d& R : orientations(F, cc)) {
+    for (const double share : cc.openings) try_pose(ctx, n, R, share * max_opening(ctx.gripper), sample_index, out, counts);
+    if (cc.fit_opening)
+      try_pose(ctx, n, R, fitted_opening(n, R.transpose().cast<float>(), ctx.gripper, padding), sample_index, out, counts);
+  }
+}
+
+}  // namespace
+
+Matrix3d local_reference_frame(std::span<const Vec3f> normals, const Vector3d& normal) {
+  Matrix3d M = Matrix3d::Zero();
+  for (const Vec3f& n : normals) M += n.cast<double>() * n.cast<double>().transpose();
+  const Eigen::SelfAdjointEigenSolver<Matrix3d> es(M);
+  Vector3d x = es.eigenvectors().col(2), z = es.eigenvectors().col(0);
+  if (normals.empty() || normal.squaredNorm() < 0.5) {  // no normals around: the given one
+    x = normal.squaredNorm() > 0 ? normal.normalized() : Vector3d::UnitZ();
+    z = x.unitOrthogonal();
+  }
+  if (x.dot(normal) < 0) x = -x;
+  Vector3d y = z.cross(x).normalized();
+  z = x.cross(y);
+  Matrix3d F;
+  F << x, y, z;
+  return F;
+}
+
+Vector3d closing_centre(const GripperConfig& g, const Isometry3d& T) { return T * Vector3d(0.5 * g.jaw_length, 0.0, 0.0); }
+
+double closing_reach(const GripperConfig& g, double opening) {
+  const double lateral = 0.5 * g.hinge_spacing + g.jaw_length * std::sin(jaw_angle_for(g, opening)) + g.jaw_thickness;
+  return std::sqrt(0.25 * g.jaw_length * g.jaw_length + lateral * lateral + 0.25 * g.jaw_height * g.jaw_height);
+}
+
+std::vector<SweptBox> swept_boxes(const std::vector<ConvexPart>& parts, double padding) {
+  std::vector<SweptBox> out;
+  for (const ConvexPart& p : parts)
+    out.push_back({.center = p.center, .half = p.half_extents + (p.axes.transpose() * Vector3d(0.0, padding, padding)).cwiseAbs(),
+                   .axes = p.axes, .dir = -p.axes.transpose().col(0)});
+  return out;
+}
+
+std::optional<double> advance_to_contact(const std::vector<SweptBox>& boxes, std::span<const Vector3d> points_G) {
+  double first = kInf;
+  for (const Vector3d& q : points_G) {
+    for (const SweptBox& b : boxes) {
+      const auto [in, out] = sweep_interval(b, q);
+      if (in > out || out < 0.0) continue;  // never touched, or behind the start
+      if (in <= 0.0) return std::nullopt;   // inside at the start
+      first = std::min(first, in);
+    }
+  }
+  return first;
+}
+
+void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Isometry3d& T,
+                  const GripperConfig& g, LocalPoints& out) {
+  out.object.clear();
+  out.normals.clear();
+  out.environment.clear();
+  const Matrix3d Rt = T.linear().transpose();
+  const Eigen::Matrix3f Rf = Rt.cast<float>();
+  const Vec3f o = T.translation().cast<float>();
+  const float half = float(0.5 * g.jaw_height);
+  for (const std::uint32_t i : indices) {
+    const Vec3f d = cloud.points[i] - o;
+    if (std::abs(Rf.row(2).dot(d)) > half) continue;  // cheap rejection first
+    const Vector3d q = (Rf * d).cast<double>();
+    if (!in_jaw_range(g, q)) continue;
+    if (cloud.labels[i] == kObject) {
+      out.object.push_back(q);
+      out.normals.push_back(Rt * cloud.normals[i].cast<double>());
+    } else {
+      out.environment.push_back(q);
+    }
+  }
+}
+
+namespace {
+
+
+/// The shifts of the object along y that keep it off each jaw at `angle`: [dL, dR].
+std::pair<double, double> shift_bounds(const JawLines& j, std::span<const Vector3d> obj,
+                                       std::span<const std::size_t> rel) {
+  double dL = -kInf, dR = kInf;
+  for (const std::size_t i : rel) {
+    const Vector3d& q = obj[i];
+    if (q.x() > j.reach) continue;
+    dL = std::max(dL, j.left(q.x()) - q.y());
+    dR = std::min(dR, j.right(q.x()) - q.y());
+  }
+  return {dL, dR};
+}
+
+/// Does a jaw sweep through a non-object point between the two angles?
+bool sweeps_environment(const GripperConfig& g, std::span<const Vector3d> env, double from, double to) {
+  const double h = 0.5 * g.hinge_spacing;
+  for (const Vector3d& q : env) {
+    for (const double side : {-1.0, 1.0}) {
+      const double dy = side * (q.y() - side * h);  // outwards from the hinge
+      if (std::hypot(q.x(), dy) > g.jaw_length) continue;
+      const double phi = std::atan2(dy, q.x());
+      if (phi >= to && phi <= from) return true;
+    }
+  }
+  return false;
+}
+
+/// The contact patch of one jaw: its centre and the jaw's force direction (the jaw face's
+/// normal, or the object's where the jaw touches with its tip edge).
+void contact_patch(const JawLines& j, std::span<const Vector3d> obj, std::span<const Vector3d> normals,
+                   std::span<const std::size_t> rel, double angle, double bound, double patch, int side,
+                   Closing& c) {
+  Vector3d sum = Vector3d::Zero(), n_sum = Vector3d::Zero();
+  int count = 0;
+  const double reach = j.reach;
+  for (const std::size_t i : rel) {
+    const Vector3d& q = obj[i];
+    if (q.x() > reach) continue;
+    const bool touches = side < 0 ? j.left(q.x()) - q.y() >= bound - patch
+                                  : j.right(q.x()) - q.y() <= bound + patch;
+    if (!touches) continue;
+    sum += q;
+    n_sum += normals[i];
+    ++count;
+  }
+  const std::size_t k = side < 0 ? 0 : 1;
+  c.contacts[k] = sum / std::max(count, 1);
+  c.patch_points[k] = count;
+  c.forces[k] = Vector3d(std::sin(angle), side < 0 ? std::cos(angle) : -std::cos(angle), 0.0);
+  // The tip edge on a face of the object: the object goes on beyond the tip where a longer jaw
+  // would cut into it; the contact normal is then the object's.
+  bool tip = false;
+  for (const Vector3d& q : obj) {
+    if (q.x() <= reach || q.x() > reach + 2.0 * patch || std::abs(q.z()) > 0.5 * j.H) continue;
+    tip = tip || (side < 0 ? j.left(q.x()) - q.y() > bound : j.right(q.x()) - q.y() < bound);
+  }
+  if (tip && n_sum.norm() > 0.5 * count) c.forces[k] = -n_sum.normalized();
+}
+
+}  // namespace
+
+Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Vector3d> obj,
+                   std::span<const Vector3d> normals, std::span<const Vector3d> env, double patch) {
+  const JawLines j{.h = 0.5 * g.hinge_spacing, .L = g.jaw_length, .H = g.jaw_height};
+  const JawLines open = j.at(open_angle);
+  Closing c;
+  std::vector<std::size_t> rel;  // object points between the open jaws
+  for (std::size_t i = 0; i < obj.size(); ++i) {
+    const Vector3d& q = obj[i];
+    if (q.x() > 0 && q.x() <= j.L && q.y() > open.left(q.x()) && q.y() < open.right(q.x())) rel.push_back(i);
+  }
+  const double closed = min_jaw_angle(g);
+  auto feasible = [&](double a) {
+    const auto [dL, dR] = shift_bounds(j.at(a), obj, rel);
+    return dL <= dR;
+  };
+  if (rel.empty() || feasible(closed)) {
+    c.failure = "empty";
+    return c;
+  }
+  double lo = closed, hi = open_angle;  // infeasible at lo, feasible at hi
+  constexpr int kBisections = 24;  // ~1e-7 rad
+  for (int it = 0; it < kBisections; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (feasible(mid) ? hi : lo) = mid;
+  }
+  c.angle = hi;
+  if (sweeps_environment(g, env, open_angle, c.angle)) {
+    c.failure = "collision_close";
+    return c;
+  }
+  const JawLines at = j.at(c.angle);
+  const auto [dL, dR] = shift_bounds(at, obj, rel);
+  c.shift = 0.5 * (dL + dR);
+  contact_patch(at, obj, normals, rel, c.angle, dL, patch, -1, c);
+  contact_patch(at, obj, normals, rel, c.angle, dR, patch, +1, c);
+  c.closed = c.patch_points[0] > 0 && c.patch_points[1] > 0;
+  if (!c.closed) c.failure = "empty";
+  return c;
+}
+
+std::vector<Candidate> generate_candidates(const PlanningCloud& pc, const GripperConfig& gripper,
+                                           const GraspConfig& config, CandidateCounts& counts) {
+  const KdTree tree(pc.cloud.points);
+  PointCloud labelled;
+  labelled.points = pc.cloud.points;
+  labelled.labels = pc.cloud.labels;
+  const PointCloud coarse = voxel_downsample(labelled, {.res_voxel = config.candidates.collision_voxels * config.cloud.voxel});
+  const KdTree coarse_tree(coarse.points);
+  const std::vector<std::uint32_t> samples = choose_samples(pc.cloud, config.candidates.samples, config.candidates.seed);
+  const SampleContext ctx{.pc = pc, .gripper = gripper, .config = config, .tree = tree, .coarse = coarse.points,
+                          .coarse_labels = coarse.labels, .coarse_tree = coarse_tree};
+  std::vector<std::vector<Candidate>> per(samples.size());
+  std::vector<CandidateCounts> per_counts(per.size());
+  tbb::parallel_for(std::size_t{0}, per.size(),
+                    [&](std::size_t k) { sample_candidates(ctx, samples[k], int(k), per[k], per_counts[k]); });
+  std::vector<Candidate> out;
+  counts = {.samples = samples.size()};
+  for (std::size_t k = 0; k < per.size(); ++k) {
+    counts.poses += per_counts[k].poses;
+    counts.hypotheses += per_counts[k].hypotheses;
+    counts.collision_free += per_counts[k].collision_free;
+    for (Candidate& c : per[k]) out.push_back(std::move(c));
+  }
+  return out;
+}
+
+}  // namespace cairn::grasp

@@ -1,0 +1,200 @@
+#include "cairn/grasp/planning_cloud.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <random>
+#include <unordered_map>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/kdtree.hpp"
+#include "cairn/core/normals.hpp"
+#include "cairn/core/voxel_grid.hpp"
+
+namespace cairn::grasp {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr unsigned kGroundSeed = 1;  // RANSAC of the ground plane (deterministic planning)
+
+struct CropRegion {
+  Vec3d centre = Vec3d::Zero();  // the model's centroid
+  double radius = 0.0;           // horizontal
+  double z_min = 0.0, z_max = 0.0;
+  [[nodiscard]] bool contains(const Vec3d& p) const {
+    return (p - centre).head<2>().norm() <= radius && p.z() >= z_min && p.z() <= z_max;
+  }
+};
+
+CropRegion crop_region(const PointCloud& object, double margin) {
+  CropRegion r;
+  r.centre = object.origin + centroid(object.points).cast<double>();
+  double reach = 0.0, z_lo = std::numeric_limits<double>::max(), z_hi = std::numeric_limits<double>::lowest();
+  for (std::size_t i = 0; i < object.size(); ++i) {
+    const Vec3d p = object.world(i);
+    reach = std::max(reach, (p - r.centre).head<2>().norm());
+    z_lo = std::min(z_lo, p.z());
+    z_hi = std::max(z_hi, p.z());
+  }
+  r.radius = reach + margin;
+  r.z_min = z_lo - margin;
+  r.z_max = z_hi + margin;
+  return r;
+}
+
+/// Appends the points of `source` inside the crop (relative to out.origin), labelled `kind`.
+void add_cropped(PointCloud& out, const PointCloud& source, const CropRegion& crop, std::int32_t kind) {
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    const Vec3d p = source.world(i);
+    if (!crop.contains(p)) continue;
+    out.points.push_back((p - out.origin).cast<float>());
+    out.labels.push_back(kind);
+  }
+}
+
+/// Object points: within `distance` of the model.
+void label_object(PointCloud& cloud, const PointCloud& model, double distance) {
+  std::vector<Vec3f> local(model.size());
+  for (std::size_t i = 0; i < model.size(); ++i) local[i] = (model.world(i) - cloud.origin).cast<float>();
+  const KdTree tree(local);
+  const float d2 = float(distance * distance);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    float sq = 0.0f;
+    (void)tree.nearest(cloud.points[i], &sq);
+    cloud.labels[i] = sq <= d2 ? kObject : kEnvironment;
+  }
+}
+
+std::optional<Plane> ground_plane(const PointCloud& cloud, const PlanningCloudConfig& c) {
+  std::vector<std::uint32_t> env;
+  for (std::size_t i = 0; i < cloud.size(); ++i)
+    if (cloud.labels[i] == kEnvironment) env.push_back(std::uint32_t(i));
+  if (env.size() < 3) return std::nullopt;
+  RansacPlaneConfig rc{.distance = c.ground_distance, .axis = Vec3f::UnitZ(), .max_tilt = c.ground_max_tilt_deg * kDeg};
+  std::mt19937_64 rng(kGroundSeed);
+  const PlaneFit fit = fit_plane_ransac(cloud.points, env, rc, rng);
+  if (!fit.found) return std::nullopt;
+  Plane p = fit.plane;
+  if (p.normal.z() < 0) {
+    p.normal = -p.normal;
+    p.d = -p.d;
+  }
+  return p;
+}
+
+}  // namespace
+
+double gripper_full_width(const GripperConfig& g) {
+  const double jaws = max_opening(g) + 2.0 * g.jaw_thickness;
+  return std::max({g.palm_width, jaws, g.hinge_spacing + 2.0 * g.jaw_thickness});
+}
+
+std::size_t fill_ground(PointCloud& cloud, const Plane& plane, double voxel) {
+  if (cloud.empty() || std::abs(plane.normal.z()) < 1e-3f) return 0;
+  const Aabb box = bounds(cloud.points);
+  const auto nx = std::size_t(std::floor((box.max.x() - box.min.x()) / voxel)) + 1;
+  const auto ny = std::size_t(std::floor((box.max.y() - box.min.y()) / voxel)) + 1;
+  struct Cell {
+    bool environment = false;
+    float object_z = std::numeric_limits<float>::max();
+  };
+  std::vector<Cell> cells(nx * ny);
+  auto cell_of = [&](const Vec3f& p) {
+    const auto ix = std::min(nx - 1, std::size_t((p.x() - box.min.x()) / voxel));
+    const auto iy = std::min(ny - 1, std::size_t((p.y() - box.min.y()) / voxel));
+    return iy * nx + ix;
+  };
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    Cell& c = cells[cell_of(cloud.points[i])];
+    if (cloud.labels[i] == kObject) c.object_z = std::min(c.object_z, cloud.points[i].z());
+    else c.environment = true;
+  }
+  std::size_t added = 0;
+  for (std::size_t iy = 0; iy < ny; ++iy) {
+    for (std::size_t ix = 0; ix < nx; ++ix) {
+      const Cell& c = cells[iy * nx + ix];
+      if (c.environment) continue;
+      const float x = box.min.x() + float((double(ix) + 0.5) * voxel), y = box.min.y() + float((double(iy) + 0.5) * voxel);
+      const float z = -(plane.normal.x() * x + plane.normal.y() * y + plane.d) / plane.normal.z();
+      if (z > c.object_z - float(voxel)) continue;  // the object rests here: no ground inside it
+      cloud.points.emplace_back(x, y, z);
+      cloud.labels.push_back(kGroundFill);
+      ++added;
+    }
+  }
+  return added;
+}
+
+Vec3d solid_centroid(const PointCloud& cloud, const Plane& plane, double voxel) {
+  std::unordered_map<std::int64_t, std::pair<Vec3d, double>> top;  // cell -> (highest point, its z)
+  constexpr std::int64_t kStride = 1 << 21;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (cloud.labels[i] != kObject) continue;
+    const Vec3f& p = cloud.points[i];
+    const std::int64_t key = std::int64_t(std::floor(p.x() / voxel)) * kStride + std::int64_t(std::floor(p.y() / voxel));
+    auto [it, inserted] = top.try_emplace(key, p.cast<double>(), double(p.z()));
+    if (!inserted && p.z() > it->second.second) it->second = {p.cast<double>(), double(p.z())};
+  }
+  Vec3d sum = Vec3d::Zero();
+  double mass = 0.0;
+  const Vec3d n = plane.normal.cast<double>();
+  for (const auto& [key, cell] : top) {
+    const Vec3d& t = cell.first;
+    const double h = n.dot(t) + double(plane.d);  // height above the ground
+    if (h <= 0.0) continue;
+    sum += h * (t - 0.5 * h * n);
+    mass += h;
+  }
+  if (mass > 0.0) return sum / mass;
+  Vec3d mean = Vec3d::Zero();  // nothing above the ground: the object points' mean
+  double count = 0.0;
+  for (std::size_t i = 0; i < cloud.size(); ++i)
+    if (cloud.labels[i] == kObject) mean += cloud.points[i].cast<double>(), count += 1.0;
+  return count > 0.0 ? Vec3d(mean / count) : mean;
+}
+
+void orient_normals(PointCloud& cloud, double radius, const Vec3f& object_centroid) {
+  const KdTree tree(cloud.points);
+  NormalConfig nc;
+  nc.radius = radius;
+  NormalResult r = estimate_normals(cloud.points, tree, nc);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    Vec3f& n = r.normals[i];
+    const Vec3f out = cloud.labels[i] == kObject ? Vec3f(cloud.points[i] - object_centroid) : Vec3f::UnitZ();
+    if (n.dot(out) < 0) n = -n;
+  }
+  cloud.normals = std::move(r.normals);
+}
+
+PlanningCloud build_planning_cloud(const PointCloud& map, const PointCloud& object, const PointCloud* drone,
+                                   const GripperConfig& gripper, const PlanningCloudConfig& c) {
+  if (object.empty()) throw InputError("grasp planning: the object's model has no points");
+  object.check_finite("object model");
+  map.check_finite("map");
+  if (drone) drone->check_finite("drone cloud");
+  const CropRegion crop = crop_region(object, c.margin_factor * gripper_full_width(gripper));
+  PlanningCloud pc;
+  pc.centroid = crop.centre;
+  PointCloud merged;
+  merged.origin = crop.centre;
+  add_cropped(merged, map, crop, kEnvironment);
+  add_cropped(merged, drone ? *drone : object, crop, kEnvironment);  // Sec. 5.2: drone, else the model
+  label_object(merged, object, c.object_distance_voxels * c.voxel);
+  pc.cloud = voxel_downsample(merged, {.res_voxel = c.voxel, .n_min = 1});
+  pc.ground = ground_plane(pc.cloud, c);
+  if (pc.ground) {
+    if (c.ground_fill) pc.fill_points = fill_ground(pc.cloud, *pc.ground, c.voxel);
+    pc.ground_normal = pc.ground->normal.cast<double>();
+  }
+  pc.mass_centroid = pc.ground ? pc.cloud.origin + solid_centroid(pc.cloud, *pc.ground, c.voxel) : pc.centroid;
+  // Columns down to the ground fill the space under a rounded stone's belly (too low); the
+  // surface points lie on its top and sides (too high): the height between the two.
+  pc.mass_centroid.z() = 0.5 * (pc.mass_centroid.z() + pc.centroid.z());
+  orient_normals(pc.cloud, c.normal_radius_voxels * c.voxel, Vec3f::Zero());
+  for (const std::int32_t l : pc.cloud.labels) (l == kObject ? pc.object_points : pc.environment_points) += 1;
+  pc.environment_points -= pc.fill_points;
+  return pc;
+}
+
+}  // namespace cairn::grasp
