@@ -22,20 +22,6 @@ using Eigen::Vector3d;
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-/// The jaws' inner faces at one angle, in G's xy-plane: y = ∓(h + x tan(angle)) up to the tips.
-struct JawLines {
-  double h, L, H;  // half hinge spacing, jaw length, jaw height
-  double tan_a = 0.0, reach = 0.0;
-  JawLines at(double angle) const {
-    JawLines j = *this;
-    j.tan_a = std::tan(angle);
-    j.reach = L * std::cos(angle);
-    return j;
-  }
-  [[nodiscard]] double left(double x) const { return -h - x * tan_a; }
-  [[nodiscard]] double right(double x) const { return h + x * tan_a; }
-};
-
 Matrix3d axis_rotation(const Vector3d& axis, double deg) { return Eigen::AngleAxisd(deg * kDeg, axis).toRotationMatrix(); }
 
 /// Entry and exit advance of a point through one box (empty when in > out).
@@ -132,7 +118,7 @@ double fitted_opening(const SampleNeighbourhood& n, const Eigen::Matrix3f& Rt, c
 }
 
 /// One orientation at one pre-grasp opening: pushed, then closed (Sec. 5.3).
-void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matrix3d& R, double opening, int sample_index,
+void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matrix3d& R, double opening,
               std::vector<Candidate>& out, CandidateCounts& counts) {
   const CandidateConfig& cc = ctx.config.candidates;
   const double voxel = ctx.config.cloud.voxel, padding = cc.padding_voxels * voxel;
@@ -163,24 +149,21 @@ void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matr
   ctx.tree.radius(closing_centre(ctx.gripper, T).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
   gather_local(ctx.pc.cloud, fine.indices, T, ctx.gripper, local);
   const double open_angle = jaw_angle_for(ctx.gripper, opening);
-  const JawLines open = JawLines{.h = 0.5 * ctx.gripper.hinge_spacing, .L = ctx.gripper.jaw_length,
-                                 .H = ctx.gripper.jaw_height}.at(open_angle);
-  const auto in_region = std::count_if(local.object.begin(), local.object.end(), [&](const Vector3d& q) {
-    return q.x() <= open.reach && q.y() > open.left(q.x()) && q.y() < open.right(q.x());  // in_closing_region
-  });
+  const JawLines open = jaw_lines(ctx.gripper, open_angle);
+  const auto in_region = std::count_if(local.object.begin(), local.object.end(),
+                                       [&](const Vector3d& q) { return open.encloses(q); });
   if (std::size_t(in_region) < cc.min_object_points) return;
   ++counts.hypotheses;
   Closing closing = close_jaws(ctx.gripper, open_angle, local.object, local.normals, local.environment,
                                ctx.config.force_closure.patch_voxels * voxel);
   if (!closing.closed) return;
   ++counts.collision_free;
-  out.push_back({.T = T, .opening = opening, .sample = sample_index, .object_points = std::size_t(in_region),
-                 .closing = std::move(closing)});
+  out.push_back({.T = T, .opening = opening, .closing = std::move(closing)});
 }
 
 /// Candidates of one sample point: every orientation at every configured opening (and the
 /// fitted one).
-void sample_candidates(const SampleContext& ctx, std::uint32_t sample, int sample_index, std::vector<Candidate>& out,
+void sample_candidates(const SampleContext& ctx, std::uint32_t sample, std::vector<Candidate>& out,
                        CandidateCounts& counts) {
   const PointCloud& cloud = ctx.pc.cloud;
   const CandidateConfig& cc = ctx.config.candidates;
@@ -200,9 +183,9 @@ void sample_candidates(const SampleContext& ctx, std::uint32_t sample, int sampl
     n.object.push_back(ctx.coarse_labels[i] == kObject);
   }
   for (const Matrix3d& R : orientations(F, cc)) {
-    for (const double share : cc.openings) try_pose(ctx, n, R, share * max_opening(ctx.gripper), sample_index, out, counts);
+    for (const double share : cc.openings) try_pose(ctx, n, R, share * max_opening(ctx.gripper), out, counts);
     if (cc.fit_opening)
-      try_pose(ctx, n, R, fitted_opening(n, R.transpose().cast<float>(), ctx.gripper, padding), sample_index, out, counts);
+      try_pose(ctx, n, R, fitted_opening(n, R.transpose().cast<float>(), ctx.gripper, padding), out, counts);
   }
 }
 
@@ -332,7 +315,7 @@ void contact_patch(const JawLines& j, std::span<const Vector3d> obj, std::span<c
   // would cut into it; the contact normal is then the object's.
   bool tip = false;
   for (const Vector3d& q : obj) {
-    if (q.x() <= reach || q.x() > reach + 2.0 * patch || std::abs(q.z()) > 0.5 * j.H) continue;
+    if (q.x() <= reach || q.x() > reach + 2.0 * patch || std::abs(q.z()) > 0.5 * j.height) continue;
     tip = tip || (side < 0 ? j.left(q.x()) - q.y() > bound : j.right(q.x()) - q.y() < bound);
   }
   if (tip && n_sum.norm() > 0.5 * count) c.forces[k] = -n_sum.normalized();
@@ -342,17 +325,16 @@ void contact_patch(const JawLines& j, std::span<const Vector3d> obj, std::span<c
 
 Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Vector3d> obj,
                    std::span<const Vector3d> normals, std::span<const Vector3d> env, double patch) {
-  const JawLines j{.h = 0.5 * g.hinge_spacing, .L = g.jaw_length, .H = g.jaw_height};
-  const JawLines open = j.at(open_angle);
+  const JawLines open = jaw_lines(g, open_angle);
   Closing c;
   std::vector<std::size_t> rel;  // object points between the open jaws
   for (std::size_t i = 0; i < obj.size(); ++i) {
     const Vector3d& q = obj[i];
-    if (q.x() > 0 && q.x() <= j.L && q.y() > open.left(q.x()) && q.y() < open.right(q.x())) rel.push_back(i);
+    if (q.x() > 0 && q.x() <= g.jaw_length && q.y() > open.left(q.x()) && q.y() < open.right(q.x())) rel.push_back(i);
   }
   const double closed = min_jaw_angle(g);
   auto feasible = [&](double a) {
-    const auto [dL, dR] = shift_bounds(j.at(a), obj, rel);
+    const auto [dL, dR] = shift_bounds(jaw_lines(g, a), obj, rel);
     return dL <= dR;
   };
   if (rel.empty() || feasible(closed)) {
@@ -370,7 +352,7 @@ Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Ve
     c.failure = "collision_close";
     return c;
   }
-  const JawLines at = j.at(c.angle);
+  const JawLines at = jaw_lines(g, c.angle);
   const auto [dL, dR] = shift_bounds(at, obj, rel);
   c.shift = 0.5 * (dL + dR);
   contact_patch(at, obj, normals, rel, c.angle, dL, patch, -1, c);
@@ -380,9 +362,8 @@ Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Ve
   return c;
 }
 
-std::vector<Candidate> generate_candidates(const PlanningCloud& pc, const GripperConfig& gripper,
+std::vector<Candidate> generate_candidates(const PlanningCloud& pc, const KdTree& tree, const GripperConfig& gripper,
                                            const GraspConfig& config, CandidateCounts& counts) {
-  const KdTree tree(pc.cloud.points);
   PointCloud labelled;
   labelled.points = pc.cloud.points;
   labelled.labels = pc.cloud.labels;
@@ -394,7 +375,7 @@ std::vector<Candidate> generate_candidates(const PlanningCloud& pc, const Grippe
   std::vector<std::vector<Candidate>> per(samples.size());
   std::vector<CandidateCounts> per_counts(per.size());
   tbb::parallel_for(std::size_t{0}, per.size(),
-                    [&](std::size_t k) { sample_candidates(ctx, samples[k], int(k), per[k], per_counts[k]); });
+                    [&](std::size_t k) { sample_candidates(ctx, samples[k], per[k], per_counts[k]); });
   std::vector<Candidate> out;
   counts = {.samples = samples.size()};
   for (std::size_t k = 0; k < per.size(); ++k) {

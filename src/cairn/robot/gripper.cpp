@@ -102,10 +102,13 @@ std::vector<ConvexPart> gripper_parts(const GripperConfig& c, double opening) {
   return parts;
 }
 
+JawLines jaw_lines(const GripperConfig& c, double angle) {
+  return {.half_spacing = 0.5 * c.hinge_spacing, .length = c.jaw_length, .height = c.jaw_height,
+          .tan_angle = std::tan(angle), .reach = c.jaw_length * std::cos(angle)};
+}
+
 bool in_closing_region(const GripperConfig& c, double opening, const Eigen::Vector3d& p) {
-  const double angle = jaw_angle_for(c, opening);
-  if (p.x() <= 0.0 || p.x() > c.jaw_length * std::cos(angle) || std::abs(p.z()) > 0.5 * c.jaw_height) return false;
-  return std::abs(p.y()) < 0.5 * c.hinge_spacing + p.x() * std::tan(angle);
+  return jaw_lines(c, jaw_angle_for(c, opening)).encloses(p);
 }
 
 }  // namespace cairn

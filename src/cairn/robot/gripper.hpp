@@ -30,6 +30,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -105,6 +106,21 @@ ConvexPart palm_part(const GripperConfig& config);
 ConvexPart jaw_part(const GripperConfig& config, JawSide side);
 /// Palm and the two jaws at the given opening (clamped to the jaw range), in G.
 std::vector<ConvexPart> gripper_parts(const GripperConfig& config, double opening);
+
+/// The jaws' inner faces at one jaw angle, in G's xy-plane: y = ∓(hinge_spacing/2 + x tan(angle))
+/// from the pivots (x = 0) to the tips (x = reach), precomputed for evaluation point by point.
+struct JawLines {
+  double half_spacing = 0.0, length = 0.0, height = 0.0;  // [m] pivots, jaw length and height
+  double tan_angle = 0.0, reach = 0.0;                    // tan(angle), length * cos(angle)
+  [[nodiscard]] double left(double x) const { return -half_spacing - x * tan_angle; }
+  [[nodiscard]] double right(double x) const { return half_spacing + x * tan_angle; }
+  /// Between the inner faces, in front of the palm, within the jaws' reach and height.
+  [[nodiscard]] bool encloses(const Eigen::Vector3d& p_G) const {
+    return p_G.x() > 0.0 && p_G.x() <= reach && std::abs(p_G.z()) <= 0.5 * height && p_G.y() > left(p_G.x()) &&
+           p_G.y() < right(p_G.x());
+  }
+};
+[[nodiscard]] JawLines jaw_lines(const GripperConfig& config, double angle);
 
 /// Closing region at the given opening, in G: the points a closing grasp could enclose —
 /// between the jaws' inner faces, in front of the palm, within the jaws' height.
