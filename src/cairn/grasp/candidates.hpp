@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/core/kdtree.hpp"
 #include "cairn/grasp/config.hpp"
 #include "cairn/grasp/planning_cloud.hpp"
 #include "cairn/robot/gripper.hpp"
@@ -64,8 +65,6 @@ struct Closing {
 struct Candidate {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // G in the planning cloud's frame
   double opening = 0.0;  // [m] pre-grasp opening
-  int sample = 0;        // index of the sample point
-  std::size_t object_points = 0;  // in the closing region
   Closing closing;
 };
 
@@ -84,9 +83,10 @@ struct LocalPoints {
 void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Eigen::Isometry3d& T,
                   const GripperConfig& gripper, LocalPoints& out);
 
-/// Samples, rotates, pushes and closes (Sec. 5.3). Returns the collision-free candidates in
-/// (sample, rotation) order; deterministic for the config's seed.
-[[nodiscard]] std::vector<Candidate> generate_candidates(const PlanningCloud& pc, const GripperConfig& gripper,
+/// Samples, rotates, pushes and closes (Sec. 5.3); `tree` indexes pc.cloud.points. Returns the
+/// collision-free candidates in (sample, rotation) order; deterministic for the config's seed.
+[[nodiscard]] std::vector<Candidate> generate_candidates(const PlanningCloud& pc, const KdTree& tree,
+                                                         const GripperConfig& gripper,
                                                          const GraspConfig& config, CandidateCounts& counts);
 
 }  // namespace cairn::grasp

@@ -36,12 +36,11 @@ Grasp make_grasp(const Candidate& c, const PlanningCloud& pc, const GripperConfi
 
 /// Robustness in order of c_align until keep_align robust grasps are found (the ranking never
 /// looks further); the rest stay unevaluated (-1).
-std::vector<std::size_t> robust_grasps(const PlanningCloud& pc, const std::vector<Candidate>& cands,
+std::vector<std::size_t> robust_grasps(const PlanningCloud& pc, const KdTree& tree, const std::vector<Candidate>& cands,
                                        std::vector<Grasp>& grasps, const GripperConfig& g, const GraspConfig& c) {
   std::vector<std::size_t> order(grasps.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return grasps[a].costs.align < grasps[b].costs.align; });
-  const KdTree tree(pc.cloud.points);
   std::vector<std::size_t> robust;
   const auto keep = std::size_t(c.ranking.keep_align);
   for (std::size_t from = 0; from < order.size() && robust.size() < keep; from += keep) {  // in parallel batches
@@ -68,7 +67,8 @@ GraspPlanning plan_grasps(const PointCloud& map, const PointCloud& object, const
   out.timings_ms["cloud"] = ms_since(t0);
   auto t = Clock::now();
   CandidateCounts cc;
-  std::vector<Candidate> all = generate_candidates(out.cloud, gripper, config, cc);
+  const KdTree tree(out.cloud.cloud.points);  // one index for the candidates and the robustness
+  std::vector<Candidate> all = generate_candidates(out.cloud, tree, gripper, config, cc);
   out.counts = {.samples = cc.samples, .poses = cc.poses, .hypotheses = cc.hypotheses, .collision_free = cc.collision_free};
   out.timings_ms["candidates"] = ms_since(t);
   t = Clock::now();
@@ -87,7 +87,7 @@ GraspPlanning plan_grasps(const PointCloud& map, const PointCloud& object, const
     fc.push_back(std::move(c));
   }
   out.counts.balanced = grasps.size();
-  const std::vector<std::size_t> robust = robust_grasps(out.cloud, fc, grasps, gripper, config);
+  const std::vector<std::size_t> robust = robust_grasps(out.cloud, tree, fc, grasps, gripper, config);
   out.counts.robust = robust.size();
   out.timings_ms["force_closure"] = ms_since(t);
   t = Clock::now();
