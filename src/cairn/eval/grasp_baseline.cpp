@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "cairn/core/error.hpp"
+#include "cairn/eval/scanned_site.hpp"
 #include "cairn/sim/simulation.hpp"
 
 namespace cairn::eval {
@@ -75,12 +76,7 @@ GraspBaselineResult run_grasp_baseline(const GraspBaselineConfig& c, const std::
   for (const std::string& scenario : c.scenarios) {
     for (const std::uint64_t seed : c.seeds) keys.emplace_back(scenario, seed);
   }
-  const std::vector<std::string> known = sim::scenario_names();
-  for (const std::string& scenario : c.scenarios) {
-    if (std::find(known.begin(), known.end(), scenario) == known.end()) {
-      (void)sim::scenario_config(scenario, {});  // throws the ConfigError listing the known names
-    }
-  }
+  require_scenarios(c.scenarios);
   const std::filesystem::path mesh_dir = sim::default_real_mesh_dir();
   std::vector<SiteJob> sites(keys.size());
   tbb::parallel_for(std::size_t{0}, keys.size(),

@@ -21,7 +21,6 @@ namespace cairn::eval {
 namespace {
 
 using Eigen::Isometry3d;
-constexpr double kTruthRadius = 12.0;   // [m] truth kept around the swing axis (R_map = 10 m + margin)
 constexpr double kTruthSpacing = 0.04;  // [m] sampling of the true surfaces
 
 /// What the machine knows about one site after scanning it.
@@ -140,17 +139,20 @@ GraspPlan world_plan(const grasp::Grasp& g, const Vec3d& centroid_map, const Iso
   return p;
 }
 
-void plan_trial(PlannedGraspTrial& t, const SensedSite& s, int segment, const GraspTrialsConfig& c) {
+/// Plans the stone's grasp on its segment and, when one passes, the plan to execute (E: map -> world).
+void plan_trial(PlannedGraspTrial& t, const SensedSite& s, int segment, const Isometry3d& E, const GraspTrialsConfig& c) {
   t.segmented = segment >= 0;
   if (!t.segmented) return;
   t.purity = s.segment_purity[std::size_t(segment)];
   const PointCloud model = object_model(s, std::size_t(segment));
   const grasp::GraspPlanning p = grasp::plan_grasps(s.map, model, s.drone ? &*s.drone : nullptr, c.gripper, c.grasp);
   t.planning_ms = p.timings_ms.at("total");
-  t.mass_centroid = s.machine->E_state(c.scan_time) * p.cloud.mass_centroid;
+  t.mass_centroid = E * p.cloud.mass_centroid;
   t.counts = p.counts;
   t.planned = !p.grasps.empty();
-  if (t.planned) t.best = p.grasps.front();
+  if (!t.planned) return;
+  t.best = p.grasps.front();
+  t.plan = world_plan(t.best, p.cloud.centroid, E, t.stone, c);
 }
 
 RateSummary rate(const std::vector<PlannedGraspTrial>& trials, const std::function<bool(const PlannedGraspTrial&)>& keep,
@@ -175,9 +177,7 @@ void validate(const GraspTrialsConfig& c) {
   c.grasp.validate();
   sim::validate(c.physics);
   validate(c.gripper);
-  const std::vector<std::string> known = sim::scenario_names();
-  for (const std::string& s : c.scenarios)
-    if (std::find(known.begin(), known.end(), s) == known.end()) (void)sim::scenario_config(s, {});  // throws, listing them
+  require_scenarios(c.scenarios);
 }
 
 /// One site: sense, plan every stone, execute the plans (and the baseline) in parallel.
@@ -200,16 +200,13 @@ void run_site(const std::string& scenario, std::uint64_t seed, const GraspTrials
     trials[k] = {.scenario = scenario, .seed = seed, .stone = int(k), .shape = st.source, .flat = st.flat,
                  .volume = st.volume, .width = sim::shortest_horizontal_extent(st).first,
                  .true_centroid = st.centroid, .true_bounds = st.bounds, .site_at_rest = true};
-    plan_trial(trials[k], s, seg[k], c);
+    plan_trial(trials[k], s, seg[k], E, c);
     if (!trials[k].segmented) out.skipped.push_back(name + " stone " + std::to_string(k) + ": no segment holds it");
   }
   tbb::parallel_for(std::size_t{0}, trials.size() * 2, [&](std::size_t j) {
     PlannedGraspTrial& t = trials[j / 2];
     if (!t.segmented) return;
     if (j % 2 == 0 && t.planned) {
-      const PointCloud model = object_model(s, std::size_t(seg[std::size_t(t.stone)]));
-      const Vec3d c_map = model.origin + centroid(model.points).cast<double>();
-      t.plan = world_plan(t.best, c_map, E, t.stone, c);
       t.result = sim::run_grasp_trial(site, t.plan, c.gripper, c.physics);
       t.result.trace.clear();
     } else if (j % 2 == 1 && c.baseline) {

@@ -23,7 +23,6 @@ namespace {
 
 using Eigen::Isometry3d;
 constexpr double kDeg = 180.0 / std::numbers::pi;
-constexpr double kTruthRadius = 12.0;  // [m] truth kept around the swing axis (R_map = 10 m + margin)
 
 Isometry3d yaw_pose(const Vec3d& p, double yaw) {
   Isometry3d T = pure_translation(p.x(), p.y(), p.z());

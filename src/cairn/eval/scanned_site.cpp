@@ -15,6 +15,12 @@ sim::SimulationConfig at_rest(sim::SimulationConfig c) {
 
 }  // namespace
 
+void require_scenarios(const std::vector<std::string>& scenarios) {
+  const std::vector<std::string> known = sim::scenario_names();
+  for (const std::string& s : scenarios)
+    if (std::find(known.begin(), known.end(), s) == known.end()) (void)sim::scenario_config(s, {});  // throws
+}
+
 SurfaceTruth::SurfaceTruth(const sim::Site& site, const Vec3d& base, double radius, double spacing, std::uint64_t seed) {
   sim::SamplingConfig s;
   s.spacing = spacing;

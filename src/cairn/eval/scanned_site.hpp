@@ -5,6 +5,8 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "cairn/core/kdtree.hpp"
 #include "cairn/mapping/config.hpp"
@@ -12,6 +14,13 @@
 #include "cairn/sim/simulation.hpp"
 
 namespace cairn::eval {
+
+/// [m] truth kept around the swing axis for scoring (R_map = 10 m + margin).
+inline constexpr double kTruthRadius = 12.0;
+
+/// Throws the ConfigError of sim::scenario_config (listing the known names) for the first
+/// unknown scenario.
+void require_scenarios(const std::vector<std::string>& scenarios);
 
 /// The true surfaces at one moment: labelled points (-1 terrain, k stone k) within `radius` of
 /// `base` (horizontally), a kd-tree over them, and the map-offset estimator.
