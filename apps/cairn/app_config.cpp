@@ -1,5 +1,8 @@
 #include "app_config.hpp"
 
+#include <fstream>
+
+#include "cairn/core/error.hpp"
 #include "cairn/core/log.hpp"
 
 namespace cairn::app {
@@ -16,6 +19,11 @@ AppConfig CommonOptions::load(AppConfig cfg) const {
   if (!config_file.empty()) config::load_yaml_file(cfg, config_file);
   for (const auto& o : overrides) config::apply_override(cfg, o);
   return cfg;
+}
+
+void write_out_file(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  if (!f || !(f << text << '\n')) throw InputError("--out: cannot write '" + path + "'");
 }
 
 }  // namespace cairn::app

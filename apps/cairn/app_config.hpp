@@ -55,6 +55,10 @@ struct CommonOptions {
 };
 
 /// Exit codes of the command line contract.
+/// Writes `text` and a newline to the file of an --out option; throws InputError "--out: cannot
+/// write 'PATH'" when it cannot.
+void write_out_file(const std::string& path, const std::string& text);
+
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitBadInput = 2;
 inline constexpr int kExitNoResult = 3;

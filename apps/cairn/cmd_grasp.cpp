@@ -5,7 +5,6 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <optional>
 
@@ -100,10 +99,7 @@ int run_trials(const TrialsArgs& a) {
   print_rate("planned, roundish", r.planned_roundish);
   if (c.baseline) print_rate("centred baseline", r.baseline);
   for (const std::string& s : r.skipped) spdlog::warn("grasp-trials: skipped {}", s);
-  if (!a.out.empty()) {
-    std::ofstream f(a.out);
-    if (!f || !(f << eval::to_json(r).dump(1) << '\n')) throw InputError("--out: cannot write '" + a.out + "'");
-  }
+  if (!a.out.empty()) write_out_file(a.out, eval::to_json(r).dump(1));
   return kExitOk;
 }
 

@@ -4,7 +4,6 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
-#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "app_config.hpp"
@@ -67,10 +66,7 @@ int run_grasp_baseline(const GraspBaselineArgs& a) {
               s.wall_time > 0.0 ? s.sim_time / s.wall_time : 0.0);
   for (const auto& [reason, count] : s.failure_reasons) std::printf("  %-20s %d\n", reason.c_str(), count);
   for (const std::string& site : r.skipped_sites) spdlog::warn("grasp-baseline: skipped {}", site);
-  if (!a.out.empty()) {
-    std::ofstream f(a.out);
-    if (!f || !(f << to_json(r).dump(1) << '\n')) throw InputError("--out: cannot write '" + a.out + "'");
-  }
+  if (!a.out.empty()) write_out_file(a.out, to_json(r).dump(1));
   return kExitOk;
 }
 

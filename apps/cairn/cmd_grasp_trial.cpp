@@ -114,10 +114,7 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   j["config"] = config::to_json(cfg);
   const std::string text = j.dump(2);
   std::cout << text << std::endl;
-  if (!a.out.empty()) {
-    std::ofstream f(a.out);
-    if (!f || !(f << text << '\n')) throw InputError("--out: cannot write '" + a.out + "'");
-  }
+  if (!a.out.empty()) write_out_file(a.out, text);
   if (r.success) {
     spdlog::info("grasp-trial: success — {} ({:.1f} s simulated in {:.1f} s)", r.message, r.sim_time, r.wall_time);
     return kExitOk;

@@ -4,7 +4,6 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 
 #include "app_config.hpp"
@@ -113,10 +112,7 @@ int run_track(const TrackArgs& a) {
   for (const std::string& u : r.unmatched) spdlog::warn("objects track: {}", u);
   std::printf("%d stones, %d objects created, %d tracked; %.0f s wall\n", r.stones, r.objects_created,
               r.stones_tracked, r.wall_time);
-  if (!a.out.empty()) {
-    std::ofstream f(a.out);
-    if (!f || !(f << eval::to_json(r).dump(1) << '\n')) throw InputError("--out: cannot write '" + a.out + "'");
-  }
+  if (!a.out.empty()) write_out_file(a.out, eval::to_json(r).dump(1));
   return kExitOk;
 }
 
