@@ -99,7 +99,10 @@ bool Statement::step() {
   const int rc = sqlite3_step(stmt_);
   if (rc == SQLITE_ROW) return true;
   if (rc == SQLITE_DONE) return false;
-  db_->fail("'" + sql_.substr(0, 60) + "' failed");
+  std::string what = "'";  // built step by step: GCC 12's -Wrestrict misfires on "a" + b + "c" here
+  what += sql_.substr(0, 60);
+  what += "' failed";
+  db_->fail(what);
 }
 
 void Statement::run() {
