@@ -631,8 +631,11 @@ TEST(PersistentWorld, ACarriedStoneIsPutDownAndComesToRest) {
   cfg.lidar.range_noise = 0.0;
   cfg.lidar.dropout = 0.0;
   constexpr double kDrop = 0.03;
+  // exp2 seed 1 does not come to rest with the elliptic cone (docs/simulator-physics.md): seed 2.
+  constexpr std::uint64_t kSeed = 2;
+  ASSERT_TRUE(make_world(cfg, kSeed).site.at_rest);
   for (std::size_t k : {1u, 3u}) {
-    SimulatedWorld w = make_world(cfg, 1);
+    SimulatedWorld w = make_world(cfg, kSeed);
     const Eigen::Vector3d c = w.site.stones[k].centroid;
     const CarryResult back = carry_and_release(w, k, Eigen::Isometry3d::Identity(), kDrop, cfg);
     EXPECT_TRUE(back.settled);
@@ -640,7 +643,7 @@ TEST(PersistentWorld, ACarriedStoneIsPutDownAndComesToRest) {
     EXPECT_LT((w.site.stones[k].centroid - c).norm(), kDrop + 0.01) << "stone " << k;
     EXPECT_LT(Eigen::AngleAxisd(back.total.linear()).angle() * 180 / std::numbers::pi, 1.0) << "stone " << k;
   }
-  SimulatedWorld w = make_world(cfg, 1);
+  SimulatedWorld w = make_world(cfg, kSeed);
   const std::size_t k = 3;
   const Eigen::Vector3d c = w.site.stones[k].centroid;
   const CarryResult moved = carry_and_release(w, k, Eigen::Isometry3d(Eigen::Translation3d(1.0, 0.0, 0.0)), kDrop, cfg);

@@ -29,6 +29,8 @@ nlohmann::json to_json(const GraspTrialResult& r) {
     trace["jaw_angle"].push_back(rounded_json(t.jaw_angle));
     trace["opening"].push_back(rounded_json(t.opening));
     trace["arm_load"].push_back(std::round(t.arm_load));
+    trace["stone_in_gripper"].push_back({rounded_json(t.stone_in_gripper.x()), rounded_json(t.stone_in_gripper.y()),
+                                         rounded_json(t.stone_in_gripper.z())});
   }
   return {{"success", r.success},
           {"failure_reasons", r.failure_reasons},

@@ -349,8 +349,13 @@ class Trial {
   /// The machine's signals now (also at the moment a detector fires, between the samples).
   void record_trace() {
     if (!r_.trace.empty() && r_.trace.back().time >= scene_.time()) return;
+    const int k = plan_.target_stone;
+    const Eigen::Vector3d in_gripper =
+        k >= 0 && k < scene_.num_stones()
+            ? Eigen::Vector3d(scene_.gripper_pose().inverse() * scene_.stone_body_pose(k).translation())
+            : Eigen::Vector3d::Zero();
     r_.trace.push_back({.time = scene_.time(), .jaw_angle = scene_.jaw_angle(), .opening = scene_.opening(),
-                        .arm_load = scene_.arm_load()});
+                        .arm_load = scene_.arm_load(), .stone_in_gripper = in_gripper});
   }
 
   bool wait_for_rest(double max_time) {

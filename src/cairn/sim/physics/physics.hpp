@@ -35,13 +35,16 @@ struct PhysicsConfig {
   // Simulation and materials.
   double timestep = 0.002;           // [s] MuJoCo time step
   /// Friction cone: "pyramidal" (2 (condim - 1) constraint rows per contact) or "elliptic"
-  /// (condim rows; MuJoCo's Newton solver handles it directly).
-  std::string cone = "pyramidal";
+  /// (condim rows; MuJoCo's Newton solver handles it directly). With pyramidal cones the soft
+  /// frictional contacts creep: a stone squeezed by the jaws with a friction margin of 3 slid
+  /// 1-2 cm/s along their faces, and most centred grasps failed as "slipped" (issue #17).
+  std::string cone = "elliptic";
   int solver_iterations = 100;       // MuJoCo <option iterations>
   double solver_tolerance = 1e-8;    // MuJoCo <option tolerance>
   /// MuJoCo's no-slip post-pass (<option noslip_iterations>): removes the slow creep of soft
-  /// frictional contacts, so touching stones at rest stay at rest (0: off).
-  int noslip_iterations = 0;
+  /// frictional contacts, so a held stone stays put in the jaws while friction can hold it, and
+  /// touching stones at rest stay at rest (0: off).
+  int noslip_iterations = 10;
   double rock_density = 2600.0;      // [kg/m^3] granite/limestone boulders
   /// Collision hull of a stone: MuJoCo's convex hull of the mesh's extreme vertices along the
   /// 10 * 4^s + 2 directions of an icosphere with s = hull_subdivisions (< 0: of every vertex).
@@ -215,6 +218,9 @@ struct TraceSample {
   double jaw_angle = 0.0;  // [rad] the jaws' angle (robot/gripper.hpp; both share it)
   double opening = 0.0;    // [m] distance between the jaw tips (from the angle)
   double arm_load = 0.0;   // [N] vertical load on the arm minus the gripper's weight (static)
+  /// Diagnostics (simulator truth, never a machine signal): the target stone's body origin in
+  /// the gripper frame.
+  Eigen::Vector3d stone_in_gripper = Eigen::Vector3d::Zero();
 };
 
 struct GraspTrialResult {
