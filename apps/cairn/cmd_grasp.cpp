@@ -65,6 +65,7 @@ struct TrialsArgs {
   CommonOptions common;
   eval::GraspTrialsConfig trials;
   bool no_baseline = false;
+  int study = 0;
   std::string out;
 };
 
@@ -84,6 +85,7 @@ int run_trials(const TrialsArgs& a) {
   c.registration = cfg.registration;
   c.grasp = cfg.grasp;
   c.baseline = !a.no_baseline;
+  c.study = a.study;
   const eval::GraspTrialsResult r = eval::run_grasp_trials(c, [](const std::string& what, int done, int total) {
     spdlog::info("grasp-trials: {}/{} sites ({})", done, total, what);
   });
@@ -128,6 +130,9 @@ void add_grasp_trials_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--source", args->trials.source, "merged with the LiDAR map: model | drone")->capture_default_str();
   cmd->add_option("--scan-time", args->trials.scan_time, "scanning before planning [s]")->capture_default_str();
   cmd->add_flag("--no-baseline", args->no_baseline, "skip the centred baseline");
+  cmd->add_option("--study", args->study,
+                  "diagnostic: also execute this many random force-closure grasps per stone (features vs outcome)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--out", args->out, "write every trial and the summary as JSON");
   args->common.add_to(*cmd);
   cmd->callback([&run, args] { run = [args] { return run_trials(*args); }; });

@@ -24,6 +24,7 @@ TEST(GraspTrials, EveryStoneIsPlannedFromTheSensedMapAndExecutedWithTheBaseline)
   GraspTrialsConfig c;
   c.scenarios = {"exp1"};
   c.seeds = {1};
+  c.study = 1;  // one more force-closure grasp per stone, executed too (diagnostic)
 #if defined(__SANITIZE_ADDRESS__)
   c.scan_time = 8.0;  // one path under the sanitizers, a short scan
   c.grasp.candidates.samples = 20;
@@ -43,7 +44,17 @@ TEST(GraspTrials, EveryStoneIsPlannedFromTheSensedMapAndExecutedWithTheBaseline)
       EXPECT_TRUE(t.result.success || !t.result.failure_reasons.empty());  // every failure has a reason
     }
     EXPECT_GT(t.baseline.sim_time, 0.0);
+    ASSERT_EQ(t.study_grasps.size(), t.study_results.size());
+    EXPECT_LE(t.study_grasps.size(), 1u);
+    for (std::size_t j = 0; j < t.study_grasps.size(); ++j) {
+      EXPECT_TRUE(t.study_grasps[j].force_closure);
+      EXPECT_GT(t.study_results[j].sim_time, 0.0);
+      EXPECT_TRUE(t.study_results[j].success || !t.study_results[j].failure_reasons.empty());
+    }
   }
+  const nlohmann::json j = to_json(r);
+  for (std::size_t k = 0; k < r.trials.size(); ++k)
+    EXPECT_EQ(j["trials"][k].contains("study"), !r.trials[k].study_grasps.empty());
   EXPECT_GE(segmented, 5);
   EXPECT_EQ(r.planned.trials, segmented);
   EXPECT_EQ(r.planned_flat.trials + r.planned_roundish.trials, r.planned.trials);

@@ -124,6 +124,17 @@ TEST(Ranking, AlignmentThenEnclosingThenDistance) {
   EXPECT_EQ(rank_hierarchically(costs, rc), (std::vector<std::size_t>{3, 1}));
 }
 
+TEST(Ranking, ClosestOrdersByEnclosingPlusDistance) {
+  const std::vector<Costs> costs{{0.10, 0.5, 0.30}, {0.20, 0.2, 0.10}, {0.90, 0.1, 0.00}, {0.15, 0.3, 0.05}};
+  EXPECT_EQ(rank_closest(costs), (std::vector<std::size_t>{2, 1, 3, 0}));
+  RankingConfig rc{.method = "closest", .keep_align = 3, .keep_enclose = 2, .output = 10};
+  EXPECT_EQ(rank_grasps(costs, rc), rank_closest(costs));
+  EXPECT_DOUBLE_EQ(search_key(costs[0], rc), 0.8);
+  rc.method = "hierarchical";
+  EXPECT_EQ(rank_grasps(costs, rc), (std::vector<std::size_t>{3, 1}));
+  EXPECT_DOUBLE_EQ(search_key(costs[0], rc), 0.10);
+}
+
 TEST(Ranking, CostsOfATopDownGrasp) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Vector3d(0, 0, 1);
@@ -169,9 +180,12 @@ TEST(PlanningCloud, TheOccludedGroundIsFilledByThePlaneAndNeverInsideTheObject) 
 }
 
 TEST(Planner, GraspsABoxFromAboveAcrossItsShortSide) {
+  // The paper's hierarchical ranking (Sec. 5.4).
   const BoxOnGround scene;
   const GripperConfig g;
-  const GraspPlanning p = plan_grasps(scene.map, scene.object, nullptr, g, GraspConfig{});
+  GraspConfig config;
+  config.ranking.method = "hierarchical";
+  const GraspPlanning p = plan_grasps(scene.map, scene.object, nullptr, g, config);
   ASSERT_FALSE(p.grasps.empty());
   EXPECT_GT(p.counts.hypotheses, p.counts.force_closure);
   const Grasp& best = p.grasps.front();
@@ -197,6 +211,30 @@ TEST(Planner, GraspsABoxFromAboveAcrossItsShortSide) {
     EXPECT_LE(p.grasps[i - 1].costs.dist, p.grasps[i].costs.dist);
 }
 
+TEST(Planner, ClosestRankingPutsThePalmNearTheCentreOfMass) {
+  // The default ranking (beyond the paper): by c_enc + c_dist.
+  const BoxOnGround scene;
+  const GripperConfig g;
+  const GraspConfig config;
+  ASSERT_EQ(config.ranking.method, "closest");
+  const GraspPlanning p = plan_grasps(scene.map, scene.object, nullptr, g, config);
+  ASSERT_FALSE(p.grasps.empty());
+  for (std::size_t i = 1; i < p.grasps.size(); ++i)
+    EXPECT_LE(p.grasps[i - 1].costs.enclose + p.grasps[i - 1].costs.dist,
+              p.grasps[i].costs.enclose + p.grasps[i].costs.dist + 1e-12);
+  const Grasp& best = p.grasps.front();
+  EXPECT_GE(best.robustness, 0.75);
+  EXPECT_LT(best.costs.dist, 0.1);
+  for (const Grasp& gr : p.force_closure_grasps) {  // no robust force-closure grasp lies closer
+    if (gr.robustness >= 0.75) {
+      EXPECT_GE(gr.costs.enclose + gr.costs.dist, best.costs.enclose + best.costs.dist - 1e-12);
+    }
+  }
+  // The vertical family closes along the shortest horizontal extent (y) turned by its yaws.
+  EXPECT_NEAR(std::abs(minor_horizontal_axis(p.cloud.cloud, Vector3d::UnitZ()).y()), 1.0, 1e-6);
+  EXPECT_EQ(p.force_closure_grasps.size(), p.counts.force_closure);
+}
+
 TEST(Planner, RefusesAnEmptyObjectAndNonFinitePoints) {
   const BoxOnGround scene;
   EXPECT_THROW((void)plan_grasps(scene.map, PointCloud{}, nullptr, GripperConfig{}, GraspConfig{}), InputError);
@@ -205,6 +243,12 @@ TEST(Planner, RefusesAnEmptyObjectAndNonFinitePoints) {
   EXPECT_THROW((void)plan_grasps(bad, scene.object, nullptr, GripperConfig{}, GraspConfig{}), InputError);
   GraspConfig c;
   c.candidates.samples = 0;
+  EXPECT_THROW((void)plan_grasps(scene.map, scene.object, nullptr, GripperConfig{}, c), ConfigError);
+  c = GraspConfig{};
+  c.ranking.method = "best";
+  EXPECT_THROW((void)plan_grasps(scene.map, scene.object, nullptr, GripperConfig{}, c), ConfigError);
+  c = GraspConfig{};
+  c.candidates.backoff_voxels = {};
   EXPECT_THROW((void)plan_grasps(scene.map, scene.object, nullptr, GripperConfig{}, c), ConfigError);
 }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <mutex>
 #include <optional>
+#include <random>
 
 #include <tbb/parallel_for.h>
 
@@ -150,6 +151,13 @@ void plan_trial(PlannedGraspTrial& t, const SensedSite& s, int segment, const Is
   t.mass_centroid = E * p.cloud.mass_centroid;
   t.counts = p.counts;
   t.planned = !p.grasps.empty();
+  if (c.study > 0) {
+    std::vector<grasp::Grasp> pool = p.force_closure_grasps;
+    std::mt19937 rng(std::uint32_t(t.seed * 1000 + std::uint64_t(t.stone)));
+    std::shuffle(pool.begin(), pool.end(), rng);
+    pool.resize(std::min(pool.size(), std::size_t(c.study)));
+    t.study_grasps = std::move(pool);
+  }
   if (!t.planned) return;
   t.best = p.grasps.front();
   t.plan = world_plan(t.best, p.cloud.centroid, E, t.stone, c);
@@ -178,6 +186,24 @@ void validate(const GraspTrialsConfig& c) {
   sim::validate(c.physics);
   validate(c.gripper);
   require_scenarios(c.scenarios);
+}
+
+/// config.study: every drawn grasp of every stone executed (in parallel).
+void run_study(const sim::Site& site, std::vector<PlannedGraspTrial>& trials, const Isometry3d& E,
+               const GraspTrialsConfig& c) {
+  std::vector<std::pair<std::size_t, std::size_t>> jobs;
+  for (std::size_t k = 0; k < trials.size(); ++k) {
+    trials[k].study_results.resize(trials[k].study_grasps.size());
+    for (std::size_t j = 0; j < trials[k].study_grasps.size(); ++j) jobs.emplace_back(k, j);
+  }
+  tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t i) {
+    PlannedGraspTrial& t = trials[jobs[i].first];
+    const grasp::Grasp& g = t.study_grasps[jobs[i].second];
+    const Vec3d centre = E.inverse() * t.mass_centroid;
+    sim::GraspTrialResult r = sim::run_grasp_trial(site, world_plan(g, centre, E, t.stone, c), c.gripper, c.physics);
+    r.trace.clear();
+    t.study_results[jobs[i].second] = std::move(r);
+  });
 }
 
 /// One site: sense, plan every stone, execute the plans (and the baseline) in parallel.
@@ -220,6 +246,7 @@ void run_site(const std::string& scenario, std::uint64_t seed, const GraspTrials
       t.baseline.trace.clear();
     }
   });
+  run_study(site, trials, E, c);
   for (PlannedGraspTrial& t : trials) out.trials.push_back(std::move(t));
 }
 
@@ -257,6 +284,23 @@ GraspTrialsResult run_grasp_trials(const GraspTrialsConfig& c, const GraspTrials
 }
 
 namespace {
+nlohmann::json study_json(const PlannedGraspTrial& t) {
+  nlohmann::json out = nlohmann::json::array();
+  for (std::size_t j = 0; j < t.study_grasps.size(); ++j) {
+    const grasp::Grasp& g = t.study_grasps[j];
+    const sim::GraspTrialResult& r = t.study_results[j];
+    out.push_back({{"align_rad", g.costs.align}, {"enclose_m", g.costs.enclose}, {"dist_m", g.costs.dist},
+                   {"contact_height_m", g.contact_height}, {"gravity_lever_m", g.gravity_lever},
+                   {"contact_angle_rad", g.contact_angle}, {"shift_m", g.shift}, {"opening_m", g.opening},
+                   {"closed_opening_m", g.closed_opening}, {"cone_margin_rad", g.cone_margin},
+                   {"robustness", g.robustness}, {"undercut", g.undercut}, {"approach", {g.approach.x(), g.approach.y(), g.approach.z()}},
+                   {"contact_z", {g.contacts[0].z(), g.contacts[1].z()}},
+                   {"palm_z", g.T_map_gripper.translation().z()},
+                   {"success", r.success}, {"failure_reasons", r.failure_reasons}, {"message", r.message}});
+  }
+  return out;
+}
+
 nlohmann::json rate_json(const RateSummary& r) {
   return {{"trials", r.trials}, {"successes", r.successes},
           {"success_rate", r.trials > 0 ? double(r.successes) / r.trials : 0.0},
@@ -284,6 +328,7 @@ nlohmann::json to_json(const GraspTrialsResult& r) {
                       {"mass_centroid", {t.mass_centroid.x(), t.mass_centroid.y(), t.mass_centroid.z()}},
                       {"true_z_range", {t.true_bounds.min().z(), t.true_bounds.max().z()}},
                       {"baseline", sim::to_json(t.baseline)}});
+    if (!t.study_grasps.empty()) trials.back()["study"] = study_json(t);
   }
   std::vector<double> ms = r.planning_ms;
   std::sort(ms.begin(), ms.end());

@@ -31,6 +31,9 @@ struct GraspTrialsConfig {
   double place_drop = 0.02;      // [m] the place pose is the grasp pose turned and raised by this
   double score_near = 0.05;      // [m] a segment point this close to a true surface lies on it
   bool baseline = true;          // also run the centred grasp on the same sites
+  /// Diagnostic study (0: off): per stone, this many grasps drawn at random from all its
+  /// force-closure grasps are executed too, to relate the planner's features to the outcome.
+  int study = 0;
   sim::PhysicsConfig physics;
   GripperConfig gripper;
   MappingConfig mapping;
@@ -59,6 +62,8 @@ struct PlannedGraspTrial {
   sim::GraspTrialResult result;    // the planned grasp (trace dropped)
   sim::GraspTrialResult baseline;  // the centred grasp on the same stone
   GraspPlan plan, baseline_plan;   // as executed (world frame)
+  std::vector<grasp::Grasp> study_grasps;            // config.study: the drawn grasps ...
+  std::vector<sim::GraspTrialResult> study_results;  // ... and their outcomes (traces dropped)
   [[nodiscard]] bool success() const { return planned && result.success; }
 };
 

@@ -73,6 +73,32 @@ std::vector<std::uint32_t> choose_samples(const PointCloud& cloud, int n, unsign
   return object;
 }
 
+/// The object's highest point within `radius` of the vertical line through `centre` (the top
+/// above the centre of mass), or the object point closest to that line.
+std::optional<std::uint32_t> top_above(const PointCloud& cloud, const Vector3d& centre, const Vector3d& up, double radius) {
+  std::optional<std::uint32_t> best, nearest;
+  double best_h = -kInf, nearest_d = kInf;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (cloud.labels[i] != kObject) continue;
+    const Vector3d d = cloud.points[i].cast<double>() - centre;
+    const double lateral = (d - d.dot(up) * up).norm(), h = d.dot(up);
+    if (lateral < nearest_d) nearest_d = lateral, nearest = std::uint32_t(i);
+    if (lateral <= radius && h > best_h) best_h = h, best = std::uint32_t(i);
+  }
+  return best ? best : nearest;
+}
+
+/// Beyond the paper: the approach along -up, closing along `minor` turned about it by each yaw.
+std::vector<Matrix3d> vertical_orientations(const Vector3d& up, const Vector3d& minor, const CandidateConfig& c) {
+  Matrix3d G;
+  G.col(0) = -up;
+  G.col(1) = minor;
+  G.col(2) = G.col(0).cross(G.col(1));
+  std::vector<Matrix3d> out;
+  for (const double yaw : c.vertical_yaws_deg) out.push_back(G * axis_rotation(Vector3d::UnitX(), yaw));
+  return out;
+}
+
 /// The rotated gripper orientations of one sample (Sec. 5.3): G's x = -x_F (towards the
 /// object), y = y_F, z = -z_F, then rotated about y, z and x in the configured steps.
 std::vector<Matrix3d> orientations(const Matrix3d& F, const CandidateConfig& c) {
@@ -95,6 +121,7 @@ struct SampleContext {
   const std::vector<Vec3f>& coarse;  // the collision cloud (collision_voxels)
   const std::vector<std::int32_t>& coarse_labels;
   const KdTree& coarse_tree;
+  std::vector<Matrix3d> vertical;  // the vertical orientations (the same for every sample)
 };
 
 /// The collision points around one sample (relative to it) and the fixed settings of its poses.
@@ -143,22 +170,33 @@ void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matr
   Isometry3d T = Isometry3d::Identity();
   T.linear() = R;
   T.translation() = o_start + (*s - cc.clearance_voxels * voxel) * R.col(0);
-  // The closing on the full-resolution cloud.
-  Neighbors fine;
-  LocalPoints local;
-  ctx.tree.radius(closing_centre(ctx.gripper, T).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
-  gather_local(ctx.pc.cloud, fine.indices, T, ctx.gripper, local);
+  // The closing on the full-resolution cloud; where the closing jaws would sweep into the
+  // environment (the tips into the ground under a low stone), the gripper backs off along the
+  // approach and closes again (the way back was checked by the push).
   const double open_angle = jaw_angle_for(ctx.gripper, opening);
   const JawLines open = jaw_lines(ctx.gripper, open_angle);
-  const auto in_region = std::count_if(local.object.begin(), local.object.end(),
-                                       [&](const Vector3d& q) { return open.encloses(q); });
-  if (std::size_t(in_region) < cc.min_object_points) return;
-  ++counts.hypotheses;
-  Closing closing = close_jaws(ctx.gripper, open_angle, local.object, local.normals, local.environment,
-                               ctx.config.force_closure.patch_voxels * voxel);
-  if (!closing.closed) return;
-  ++counts.collision_free;
-  out.push_back({.T = T, .opening = opening, .closing = std::move(closing)});
+  bool hypothesis = false;
+  for (const double back : cc.backoff_voxels) {
+    Isometry3d Tb = T;
+    Tb.translation() -= back * voxel * R.col(0);
+    Neighbors fine;
+    LocalPoints local;
+    ctx.tree.radius(closing_centre(ctx.gripper, Tb).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
+    gather_local(ctx.pc.cloud, fine.indices, Tb, ctx.gripper, local);
+    const auto in_region = std::count_if(local.object.begin(), local.object.end(),
+                                         [&](const Vector3d& q) { return open.encloses(q); });
+    if (std::size_t(in_region) < cc.min_object_points) break;
+    hypothesis = true;
+    Closing closing = close_jaws(ctx.gripper, open_angle, local.object, local.normals, local.environment,
+                                 ctx.config.force_closure.patch_voxels * voxel);
+    if (closing.failure == "collision_close") continue;
+    if (closing.closed) {
+      ++counts.collision_free;
+      out.push_back({.T = Tb, .opening = opening, .closing = std::move(closing)});
+    }
+    break;
+  }
+  counts.hypotheses += hypothesis ? 1 : 0;
 }
 
 /// Candidates of one sample point: every orientation at every configured opening (and the
@@ -182,7 +220,9 @@ void sample_candidates(const SampleContext& ctx, std::uint32_t sample, std::vect
     n.around.push_back(ctx.coarse[i] - cloud.points[sample]);
     n.object.push_back(ctx.coarse_labels[i] == kObject);
   }
-  for (const Matrix3d& R : orientations(F, cc)) {
+  std::vector<Matrix3d> rotations = orientations(F, cc);
+  rotations.insert(rotations.end(), ctx.vertical.begin(), ctx.vertical.end());
+  for (const Matrix3d& R : rotations) {
     for (const double share : cc.openings) try_pose(ctx, n, R, share * max_opening(ctx.gripper), out, counts);
     if (cc.fit_opening)
       try_pose(ctx, n, R, fitted_opening(n, R.transpose().cast<float>(), ctx.gripper, padding), out, counts);
@@ -190,6 +230,26 @@ void sample_candidates(const SampleContext& ctx, std::uint32_t sample, std::vect
 }
 
 }  // namespace
+
+Vector3d minor_horizontal_axis(const PointCloud& cloud, const Vector3d& up) {
+  const Vector3d u = up.unitOrthogonal(), v = up.cross(u);
+  Eigen::Matrix2d C = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (cloud.labels[i] != kObject) continue;
+    const Vector3d p = cloud.points[i].cast<double>();
+    const Eigen::Vector2d q(p.dot(u), p.dot(v));
+    mean += q, C += q * q.transpose(), ++n;
+  }
+  if (n < 2) return u;
+  mean /= double(n);
+  C = C / double(n) - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(C);
+  const Eigen::Vector2d a = es.eigenvectors().col(0);  // smallest eigenvalue
+  return (a.x() * u + a.y() * v).normalized();
+}
+
 
 Matrix3d local_reference_frame(std::span<const Vec3f> normals, const Vector3d& normal) {
   Matrix3d M = Matrix3d::Zero();
@@ -310,6 +370,7 @@ void contact_patch(const JawLines& j, std::span<const Vector3d> obj, std::span<c
   const std::size_t k = side < 0 ? 0 : 1;
   c.contacts[k] = sum / std::max(count, 1);
   c.patch_points[k] = count;
+  c.normals[k] = n_sum.norm() > 0.0 ? Vector3d(n_sum.normalized()) : Vector3d::Zero();
   c.forces[k] = Vector3d(std::sin(angle), side < 0 ? std::cos(angle) : -std::cos(angle), 0.0);
   // The tip edge on a face of the object: the object goes on beyond the tip where a longer jaw
   // would cut into it; the contact normal is then the object's.
@@ -369,9 +430,16 @@ std::vector<Candidate> generate_candidates(const PlanningCloud& pc, const KdTree
   labelled.labels = pc.cloud.labels;
   const PointCloud coarse = voxel_downsample(labelled, {.res_voxel = config.candidates.collision_voxels * config.cloud.voxel});
   const KdTree coarse_tree(coarse.points);
-  const std::vector<std::uint32_t> samples = choose_samples(pc.cloud, config.candidates.samples, config.candidates.seed);
-  const SampleContext ctx{.pc = pc, .gripper = gripper, .config = config, .tree = tree, .coarse = coarse.points,
-                          .coarse_labels = coarse.labels, .coarse_tree = coarse_tree};
+  std::vector<std::uint32_t> samples = choose_samples(pc.cloud, config.candidates.samples, config.candidates.seed);
+  SampleContext ctx{.pc = pc, .gripper = gripper, .config = config, .tree = tree, .coarse = coarse.points,
+                    .coarse_labels = coarse.labels, .coarse_tree = coarse_tree, .vertical = {}};
+  if (!config.candidates.vertical_yaws_deg.empty()) {
+    const Vector3d up = pc.ground_normal.normalized();
+    ctx.vertical = vertical_orientations(up, minor_horizontal_axis(pc.cloud, up), config.candidates);
+    const Vector3d mass = pc.mass_centroid - pc.cloud.origin;
+    const std::optional<std::uint32_t> top = top_above(pc.cloud, mass, up, config.cloud.voxel);
+    if (top && std::find(samples.begin(), samples.end(), *top) == samples.end()) samples.push_back(*top);
+  }
   std::vector<std::vector<Candidate>> per(samples.size());
   std::vector<CandidateCounts> per_counts(per.size());
   tbb::parallel_for(std::size_t{0}, per.size(),

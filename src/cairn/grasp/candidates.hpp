@@ -24,6 +24,10 @@ namespace cairn::grasp {
 /// (the axis of minimal curvature), y = z × x.
 [[nodiscard]] Eigen::Matrix3d local_reference_frame(std::span<const Vec3f> normals, const Vec3d& normal);
 
+/// The object points' (label kObject) shortest horizontal extent: the minor axis of their
+/// covariance in the plane across `up` (unit, in that plane).
+[[nodiscard]] Eigen::Vector3d minor_horizontal_axis(const PointCloud& cloud, const Eigen::Vector3d& up);
+
 /// A box of the gripper, ready for sweeping points through it along the approach.
 struct SweptBox {
   Eigen::Vector3d center, half;
@@ -55,6 +59,7 @@ struct Closing {
   double shift = 0.0;          // [m] the object's slide along y_G while closing
   std::array<Eigen::Vector3d, 2> contacts;  // left (y < 0), right: patch centres on the object (G)
   std::array<Eigen::Vector3d, 2> forces;    // unit directions of the jaw forces on the object (G)
+  std::array<Eigen::Vector3d, 2> normals;   // mean outward surface normals of the patches (G; 0 if none)
   std::array<int, 2> patch_points{0, 0};
 };
 [[nodiscard]] Closing close_jaws(const GripperConfig& gripper, double open_angle,

@@ -29,6 +29,10 @@ void validate(const CandidateConfig& c) {
   require(c.lrf_radius_voxels >= 1, "candidates.lrf_radius_voxels", "must be >= 1");
   for (const auto* list : {&c.rotations_y_deg, &c.rotations_z_deg, &c.rotations_x_deg})
     require(!list->empty() && all_finite(*list), "candidates.rotations_*_deg", "must be non-empty lists of finite angles");
+  require(all_finite(c.vertical_yaws_deg), "candidates.vertical_yaws_deg", "must be finite angles");
+  require(!c.backoff_voxels.empty() && all_finite(c.backoff_voxels) &&
+              std::all_of(c.backoff_voxels.begin(), c.backoff_voxels.end(), [](double b) { return b >= 0; }),
+          "candidates.backoff_voxels", "must be a non-empty list of back-offs >= 0");
   require(std::all_of(c.openings.begin(), c.openings.end(), [](double o) { return o > 0 && o <= 1; }),
           "candidates.openings", "must be shares in (0, 1]");
   require(!c.openings.empty() || c.fit_opening, "candidates.openings", "must not be empty without fit_opening");
@@ -58,6 +62,8 @@ void GraspConfig::validate() const {
   grasp::validate(cloud);
   grasp::validate(candidates);
   grasp::validate(force_closure);
+  require(ranking.method == "hierarchical" || ranking.method == "closest", "ranking.method",
+          "must be 'hierarchical' or 'closest'");
   require(ranking.keep_align >= 1 && ranking.keep_enclose >= 1 && ranking.output >= 1, "ranking.keep_*/output",
           "must be >= 1");
 }

@@ -5,6 +5,7 @@
 // the same settings plan for a 1 m jaw on boulders and for a scaled gripper on GPD's small
 // objects (docs/grasp.md).
 #include <vector>
+#include <string>
 
 namespace cairn::grasp {
 
@@ -44,6 +45,11 @@ struct CandidateConfig {
   std::vector<double> rotations_y_deg = {-30.0, 0.0, 30.0};
   std::vector<double> rotations_z_deg = {-30.0, 0.0, 30.0};
   std::vector<double> rotations_x_deg = {0.0, 90.0};
+  /// Beyond the paper: per sample, also approach along -n_ground (the direction Eq. 5 ranks
+  /// best; GPD's approach-direction filter turned into sampling), closing along the object's
+  /// shortest horizontal extent turned about the approach by these yaws [deg] (empty: off). A
+  /// sample at the estimated centre of mass's top is added for them.
+  std::vector<double> vertical_yaws_deg = {-30.0, 0.0, 30.0, 90.0};
   /// Pre-grasp openings as shares of the gripper's largest opening. Closing from fully open swings
   /// the tips 18 cm further along the approach (1 m jaws, 35 deg), into the ground under a low
   /// stone; from parallel jaws (0.55: 1.40 m, the pivots' spacing) the tips close upwards.
@@ -64,6 +70,10 @@ struct CandidateConfig {
   /// approach from there is checked for collisions.
   double start_margin_voxels = 4.0;
   std::size_t min_object_points = 5;  // object points in the closing region (non-empty, Sec. 5.3)
+  /// Back-offs along the approach tried in turn when the closing jaws would sweep into the
+  /// environment (the tips into the ground under a flat stone), in voxels; the first is the
+  /// pushed pose itself.
+  std::vector<double> backoff_voxels = {0.0, 2.0, 4.0, 6.0};
   unsigned seed = 1;                  // sampling of the N points
   template <class V>
   void visit(V& v) {
@@ -72,6 +82,9 @@ struct CandidateConfig {
     v("rotations_y_deg", rotations_y_deg, "rotations about the local frame's y axis [deg]");
     v("rotations_z_deg", rotations_z_deg, "rotations about the local frame's z axis [deg]");
     v("rotations_x_deg", rotations_x_deg, "rotations about the approach axis [deg] (beyond the paper)");
+    v("backoff_voxels", backoff_voxels, "back-offs along the approach tried when the closing jaws hit the environment [voxels]");
+    v("vertical_yaws_deg", vertical_yaws_deg,
+      "approach along -n_ground too, closing along the shortest horizontal extent turned by these yaws [deg] (empty: off)");
     v("openings", openings, "pre-grasp openings as shares of the largest opening");
     v("fit_opening", fit_opening, "also try the opening fitted to the object's width per pose");
     v("collision_voxels", collision_voxels, "resolution of the collision cloud in voxels");
@@ -109,8 +122,10 @@ struct ForceClosureConfig {
   double max_contact_angle_deg = 0.0;
   /// Beyond the paper: the coupled jaws touch one after the other unless the object sits midway
   /// between them; the first pushes it along the closing axis, sliding it over the ground and
-  /// turning it. Largest predicted slide, in voxels.
-  double max_shift_voxels = 2.0;
+  /// turning it. Largest predicted slide, in voxels. Executed in the physics, a 2-voxel limit
+  /// rejected grasps that held (exp1 + exp2 seeds 1-2: 15/28 held with it, 20/28 without it;
+  /// docs/grasp.md): the default only rejects slides as long as the jaw (20 voxels, 1 m).
+  double max_shift_voxels = 20.0;
   unsigned seed = 7;
   template <class V>
   void visit(V& v) {
@@ -131,11 +146,17 @@ struct ForceClosureConfig {
 
 /// Sec. 5.4: hierarchical ranking (Eq. 5-7).
 struct RankingConfig {
+  /// "hierarchical": the paper's (Sec. 5.4, Eq. 5-7). "closest" (beyond the paper): ordered by
+  /// c_enc + c_dist, the palm's distance to the centre of mass along the approach plus the
+  /// approach axis' distance from it, without the alignment filter. Executed in the physics
+  /// (docs/grasp.md), the alignment filter did not predict success and the palm's closeness did.
+  std::string method = "closest";
   int keep_align = 40;    // best by c_align (Eq. 5)
   int keep_enclose = 20;  // of those, best by c_enc (Eq. 6); then ordered by c_dist (Eq. 7)
   int output = 10;        // ranked grasps returned
   template <class V>
   void visit(V& v) {
+    v("method", method, "hierarchical (the paper's Eq. 5-7) | closest (by c_enc + c_dist, beyond the paper)");
     v("keep_align", keep_align, "grasps kept by the alignment cost (Eq. 5)");
     v("keep_enclose", keep_enclose, "grasps kept by the enclosing cost (Eq. 6)");
     v("output", output, "ranked grasps returned");

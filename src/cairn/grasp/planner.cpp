@@ -29,20 +29,25 @@ Grasp make_grasp(const Candidate& c, const PlanningCloud& pc, const GripperConfi
   out.contact_height = (0.5 * (out.contacts[0] + out.contacts[1]) - pc.mass_centroid).dot(pc.ground_normal);
   const Eigen::Vector3d axis = (out.contacts[1] - out.contacts[0]).normalized();
   out.gravity_lever = std::abs(axis.dot((pc.mass_centroid - out.contacts[0]).cross(pc.ground_normal)));
+  out.undercut = -std::max((c.T.linear() * c.closing.normals[0]).dot(pc.ground_normal),
+                            (c.T.linear() * c.closing.normals[1]).dot(pc.ground_normal));
   out.cone_margin = cone_margin(c.closing, mu);
   out.force_closure = force_closure(c.closing, mu);
   return out;
 }
 
-/// Robustness in order of c_align until keep_align robust grasps are found (the ranking never
-/// looks further); the rest stay unevaluated (-1).
+/// Robustness in the order of the ranking's search key (c_align, or c_enc + c_dist) until as many
+/// robust grasps are found as the ranking looks at (keep_align, or output); the rest stay
+/// unevaluated (-1).
 std::vector<std::size_t> robust_grasps(const PlanningCloud& pc, const KdTree& tree, const std::vector<Candidate>& cands,
                                        std::vector<Grasp>& grasps, const GripperConfig& g, const GraspConfig& c) {
   std::vector<std::size_t> order(grasps.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return grasps[a].costs.align < grasps[b].costs.align; });
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return search_key(grasps[a].costs, c.ranking) < search_key(grasps[b].costs, c.ranking);
+  });
   std::vector<std::size_t> robust;
-  const auto keep = std::size_t(c.ranking.keep_align);
+  const auto keep = std::size_t(c.ranking.method == "closest" ? c.ranking.output : c.ranking.keep_align);
   for (std::size_t from = 0; from < order.size() && robust.size() < keep; from += keep) {  // in parallel batches
     const std::size_t to = std::min(order.size(), from + keep);
     tbb::parallel_for(from, to, [&](std::size_t k) {
@@ -74,6 +79,7 @@ GraspPlanning plan_grasps(const PointCloud& map, const PointCloud& object, const
   t = Clock::now();
   std::vector<Candidate> fc;
   std::vector<Grasp> grasps;
+  std::vector<std::size_t> fc_index;  // per balanced grasp: its place in force_closure_grasps
   const double max_lever = config.force_closure.max_lever_jaw_heights * gripper.jaw_height;
   const double max_angle = config.force_closure.max_contact_angle_deg * std::numbers::pi / 180.0;
   const double max_shift = config.force_closure.max_shift_voxels * config.cloud.voxel;
@@ -82,18 +88,21 @@ GraspPlanning plan_grasps(const PointCloud& map, const PointCloud& object, const
     if (!g.force_closure) continue;
     ++out.counts.force_closure;
     out.force_closure_costs.push_back(g.costs);
+    out.force_closure_grasps.push_back(g);
     if (g.gravity_lever > max_lever || g.contact_angle > max_angle || std::abs(g.shift) > max_shift) continue;
+    fc_index.push_back(out.force_closure_grasps.size() - 1);
     grasps.push_back(g);
     fc.push_back(std::move(c));
   }
   out.counts.balanced = grasps.size();
   const std::vector<std::size_t> robust = robust_grasps(out.cloud, tree, fc, grasps, gripper, config);
   out.counts.robust = robust.size();
+  for (std::size_t i = 0; i < grasps.size(); ++i) out.force_closure_grasps[fc_index[i]].robustness = grasps[i].robustness;
   out.timings_ms["force_closure"] = ms_since(t);
   t = Clock::now();
   std::vector<Costs> robust_costs;
   for (const std::size_t i : robust) robust_costs.push_back(grasps[i].costs);
-  const std::vector<std::size_t> ranked = rank_hierarchically(robust_costs, config.ranking);
+  const std::vector<std::size_t> ranked = rank_grasps(robust_costs, config.ranking);
   std::vector<bool> selected(grasps.size(), false);
   for (std::size_t r = 0; r < ranked.size(); ++r) {
     const std::size_t i = robust[ranked[r]];

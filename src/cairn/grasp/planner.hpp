@@ -34,6 +34,10 @@ struct Grasp {
   /// [m] horizontal distance of the centre of mass from the vertical plane through the contact
   /// line: gravity's lever about it.
   double gravity_lever = 0.0;
+  /// How far the contact patches face downwards: minus the smaller of their mean outward
+  /// normals' components along the ground normal (> 0: both jaws press on the underside of
+  /// the stone's bulge, which then cannot slide out downwards without spreading them).
+  double undercut = 0.0;
   bool force_closure = false;
   double cone_margin = 0.0;  // [rad]
   double robustness = -1.0;  // share of perturbations in force closure (-1: not evaluated)
@@ -51,6 +55,9 @@ struct GraspPlanning {
   /// Every force-closure grasp's costs and the costs of those the ranking selected (the paper's
   /// Fig. 9).
   std::vector<Costs> force_closure_costs, selected_costs;
+  /// Every force-closure grasp (same order as force_closure_costs; robustness -1 where the
+  /// ranking did not need it): what a study of the grasps' physics outcome draws from.
+  std::vector<Grasp> force_closure_grasps;
   GraspCounts counts;
   std::map<std::string, double> timings_ms;  // cloud, candidates, force_closure, ranking, total
 };

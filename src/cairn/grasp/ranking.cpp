@@ -33,4 +33,19 @@ std::vector<std::size_t> rank_hierarchically(std::span<const Costs> costs, const
   return order;
 }
 
+std::vector<std::size_t> rank_closest(std::span<const Costs> costs) {
+  std::vector<std::size_t> order(costs.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  keep_best(order, order.size(), [&](std::size_t i) { return costs[i].enclose + costs[i].dist; });
+  return order;
+}
+
+std::vector<std::size_t> rank_grasps(std::span<const Costs> costs, const RankingConfig& c) {
+  return c.method == "closest" ? rank_closest(costs) : rank_hierarchically(costs, c);
+}
+
+double search_key(const Costs& costs, const RankingConfig& c) {
+  return c.method == "closest" ? costs.enclose + costs.dist : costs.align;
+}
+
 }  // namespace cairn::grasp

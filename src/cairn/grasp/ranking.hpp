@@ -24,4 +24,12 @@ struct Costs {
 /// c_dist. Returns indices into `costs`, best first (ties keep the input order).
 [[nodiscard]] std::vector<std::size_t> rank_hierarchically(std::span<const Costs> costs, const RankingConfig& config);
 
+/// Beyond the paper: ordered by c_enc + c_dist (ties keep the input order).
+[[nodiscard]] std::vector<std::size_t> rank_closest(std::span<const Costs> costs);
+
+/// The configured ranking (RankingConfig::method) and the key its robustness search follows
+/// (c_align for the hierarchical ranking, c_enc + c_dist for the closest).
+[[nodiscard]] std::vector<std::size_t> rank_grasps(std::span<const Costs> costs, const RankingConfig& config);
+[[nodiscard]] double search_key(const Costs& costs, const RankingConfig& config);
+
 }  // namespace cairn::grasp
