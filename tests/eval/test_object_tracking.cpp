@@ -18,7 +18,7 @@ namespace {
 TEST(ObjectTracking, MovedStonesAreFoundAgainAndTheGraspTakesOnlyTheStone) {
   ObjectTrackingConfig c;
   c.scenario = "exp2";
-  c.seed = 1;
+  c.seed = 2;  // exp2 seed 1 does not come to rest with the elliptic cone (docs/simulator-physics.md)
   c.rounds = 1;
   c.simulation = sim::scenario_config("exp2", sim::default_real_mesh_dir());
   c.database = std::filesystem::temp_directory_path() / ("cairn_test_tracking_" + std::to_string(::getpid()) + ".db");
