@@ -32,6 +32,7 @@ TEST(GraspTrials, EveryStoneIsPlannedFromTheSensedMapAndExecutedWithTheBaseline)
   const GraspTrialsResult r = run_grasp_trials(c);
   ASSERT_EQ(r.trials.size(), 7u);
   int segmented = 0;
+  std::size_t studied = 0;
   for (const PlannedGraspTrial& t : r.trials) {
     if (!t.segmented) continue;
     ++segmented;
@@ -46,6 +47,7 @@ TEST(GraspTrials, EveryStoneIsPlannedFromTheSensedMapAndExecutedWithTheBaseline)
     EXPECT_GT(t.baseline.sim_time, 0.0);
     ASSERT_EQ(t.study_grasps.size(), t.study_results.size());
     EXPECT_LE(t.study_grasps.size(), 1u);
+    studied += t.study_grasps.size();
     for (std::size_t j = 0; j < t.study_grasps.size(); ++j) {
       EXPECT_TRUE(t.study_grasps[j].force_closure);
       EXPECT_GT(t.study_results[j].sim_time, 0.0);
@@ -56,6 +58,7 @@ TEST(GraspTrials, EveryStoneIsPlannedFromTheSensedMapAndExecutedWithTheBaseline)
   for (std::size_t k = 0; k < r.trials.size(); ++k)
     EXPECT_EQ(j["trials"][k].contains("study"), !r.trials[k].study_grasps.empty());
   EXPECT_GE(segmented, 5);
+  EXPECT_GT(studied, 0u);
   EXPECT_EQ(r.planned.trials, segmented);
   EXPECT_EQ(r.planned_flat.trials + r.planned_roundish.trials, r.planned.trials);
   EXPECT_EQ(r.baseline.trials, segmented);

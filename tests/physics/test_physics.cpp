@@ -138,7 +138,7 @@ TEST(GraspTrial, TraceCarriesTheStoneWeightAndASteadyJaw) {
 /// (diagnostic trace).
 double creep_in(const GraspTrialResult& r, const std::string& phase) {
   const auto p = std::find_if(r.phases.begin(), r.phases.end(), [&](const PhaseTiming& q) { return q.name == phase; });
-  if (p == r.phases.end()) return -1.0;
+  if (p == r.phases.end()) return -1.0;  // no such phase
   const TraceSample* first = nullptr;
   double d = 0.0;
   for (const TraceSample& s : r.trace) {
@@ -146,7 +146,7 @@ double creep_in(const GraspTrialResult& r, const std::string& phase) {
     if (!first) first = &s;
     d = std::max(d, (s.stone_in_gripper - first->stone_in_gripper).norm());
   }
-  return d;
+  return first ? d : -1.0;  // no trace sample in it
 }
 
 TEST(GraspTrial, CentredGraspsHoldTheGeneratedStonesWithoutCreep) {
@@ -179,7 +179,11 @@ TEST(GraspTrial, CentredGraspsHoldTheGeneratedStonesWithoutCreep) {
     const GraspTrialResult r = run_grasp_trial(w.site, plan, cfg.gripper, cfg.physics);
     held += r.success ? 1 : 0;
     slipped += has_reason(r, reason::kSlipped) ? 1 : 0;
-    if (r.success) EXPECT_LT(creep_in(r, "hold"), 0.005) << "stone " << k;
+    if (r.success) {
+      const double creep = creep_in(r, "hold");
+      EXPECT_GE(creep, 0.0) << "stone " << k << ": no hold phase";
+      EXPECT_LT(creep, 0.005) << "stone " << k;
+    }
     slipped_soft += has_reason(run_grasp_trial(w.site, plan, cfg.gripper, soft), reason::kSlipped) ? 1 : 0;
   }
   EXPECT_GE(held, 1);

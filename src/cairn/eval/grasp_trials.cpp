@@ -149,11 +149,13 @@ void plan_trial(PlannedGraspTrial& t, const SensedSite& s, int segment, const Is
   const grasp::GraspPlanning p = grasp::plan_grasps(s.map, model, s.drone ? &*s.drone : nullptr, c.gripper, c.grasp);
   t.planning_ms = p.timings_ms.at("total");
   t.mass_centroid = E * p.cloud.mass_centroid;
+  t.model_centroid = p.cloud.centroid;
   t.counts = p.counts;
   t.planned = !p.grasps.empty();
   if (c.study > 0) {
     std::vector<grasp::Grasp> pool = p.force_closure_grasps;
-    std::mt19937 rng(std::uint32_t(t.seed * 1000 + std::uint64_t(t.stone)));
+    std::seed_seq seq{std::uint64_t(std::hash<std::string>{}(t.scenario)), t.seed, std::uint64_t(t.stone)};
+    std::mt19937 rng(seq);
     std::shuffle(pool.begin(), pool.end(), rng);
     pool.resize(std::min(pool.size(), std::size_t(c.study)));
     t.study_grasps = std::move(pool);
@@ -198,9 +200,9 @@ void run_study(const sim::Site& site, std::vector<PlannedGraspTrial>& trials, co
   }
   tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t i) {
     PlannedGraspTrial& t = trials[jobs[i].first];
-    const grasp::Grasp& g = t.study_grasps[jobs[i].second];
-    const Vec3d centre = E.inverse() * t.mass_centroid;
-    sim::GraspTrialResult r = sim::run_grasp_trial(site, world_plan(g, centre, E, t.stone, c), c.gripper, c.physics);
+    const grasp::Grasp& g = t.study_grasps[jobs[i].second];  // placed as the planned grasp is
+    sim::GraspTrialResult r =
+        sim::run_grasp_trial(site, world_plan(g, t.model_centroid, E, t.stone, c), c.gripper, c.physics);
     r.trace.clear();
     t.study_results[jobs[i].second] = std::move(r);
   });

@@ -58,6 +58,7 @@ struct PlannedGraspTrial {
   double planning_ms = 0.0;
   grasp::GraspCounts counts;
   Eigen::Vector3d mass_centroid = Eigen::Vector3d::Zero();  // the planner's estimate (world)
+  Eigen::Vector3d model_centroid = Eigen::Vector3d::Zero();  // the model's centroid (map): the place turns about it
   grasp::Grasp best;
   sim::GraspTrialResult result;    // the planned grasp (trace dropped)
   sim::GraspTrialResult baseline;  // the centred grasp on the same stone

@@ -172,11 +172,12 @@ void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matr
   T.translation() = o_start + (*s - cc.clearance_voxels * voxel) * R.col(0);
   // The closing on the full-resolution cloud; where the closing jaws would sweep into the
   // environment (the tips into the ground under a low stone), the gripper backs off along the
-  // approach and closes again (the way back was checked by the push).
+  // approach and closes again, never behind the push's start (the way back was checked by it).
   const double open_angle = jaw_angle_for(ctx.gripper, opening);
   const JawLines open = jaw_lines(ctx.gripper, open_angle);
   bool hypothesis = false;
   for (const double back : cc.backoff_voxels) {
+    if (back * voxel > *s - cc.clearance_voxels * voxel) break;
     Isometry3d Tb = T;
     Tb.translation() -= back * voxel * R.col(0);
     Neighbors fine;

@@ -57,9 +57,9 @@ struct Closing {
                                // sweeps through a non-object point first)
   double angle = 0.0;          // [rad] jaw angle at contact
   double shift = 0.0;          // [m] the object's slide along y_G while closing
-  std::array<Eigen::Vector3d, 2> contacts;  // left (y < 0), right: patch centres on the object (G)
-  std::array<Eigen::Vector3d, 2> forces;    // unit directions of the jaw forces on the object (G)
-  std::array<Eigen::Vector3d, 2> normals;   // mean outward surface normals of the patches (G; 0 if none)
+  std::array<Eigen::Vector3d, 2> contacts{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};  // left (y < 0), right: patch centres on the object (G)
+  std::array<Eigen::Vector3d, 2> forces{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};  // unit directions of the jaw forces on the object (G)
+  std::array<Eigen::Vector3d, 2> normals{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};  // mean outward surface normals of the patches (G; 0 if none)
   std::array<int, 2> patch_points{0, 0};
 };
 [[nodiscard]] Closing close_jaws(const GripperConfig& gripper, double open_angle,

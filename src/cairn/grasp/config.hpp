@@ -71,8 +71,8 @@ struct CandidateConfig {
   double start_margin_voxels = 4.0;
   std::size_t min_object_points = 5;  // object points in the closing region (non-empty, Sec. 5.3)
   /// Back-offs along the approach tried in turn when the closing jaws would sweep into the
-  /// environment (the tips into the ground under a flat stone), in voxels; the first is the
-  /// pushed pose itself.
+  /// environment (the tips into the ground under a flat stone), in voxels (0: the pushed pose
+  /// itself); none goes behind the push's start.
   std::vector<double> backoff_voxels = {0.0, 2.0, 4.0, 6.0};
   unsigned seed = 1;                  // sampling of the N points
   template <class V>
@@ -151,7 +151,7 @@ struct RankingConfig {
   /// approach axis' distance from it, without the alignment filter. Executed in the physics
   /// (docs/grasp.md), the alignment filter did not predict success and the palm's closeness did.
   std::string method = "closest";
-  int keep_align = 40;    // best by c_align (Eq. 5)
+  int keep_align = 40;    // best by c_align (Eq. 5); keep_* apply to the hierarchical method only
   int keep_enclose = 20;  // of those, best by c_enc (Eq. 6); then ordered by c_dist (Eq. 7)
   int output = 10;        // ranked grasps returned
   template <class V>
