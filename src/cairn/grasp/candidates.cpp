@@ -144,6 +144,41 @@ double fitted_opening(const SampleNeighbourhood& n, const Eigen::Matrix3f& Rt, c
   return std::clamp(2.0 * (double(half) + padding), opening_at(g, min_jaw_angle(g)), max_opening(g));
 }
 
+/// The closing of one pushed pose T on the full-resolution cloud; where the closing jaws would
+/// sweep into the environment (the tips into the ground under a low stone), the gripper backs
+/// off along the approach and closes again, never more than `pushed` (the advance from the push's
+/// start: the way back was checked by it).
+void close_with_backoff(const SampleContext& ctx, const Isometry3d& T, double opening,
+                        double pushed, std::vector<Candidate>& out, CandidateCounts& counts) {
+  const CandidateConfig& cc = ctx.config.candidates;
+  const double voxel = ctx.config.cloud.voxel;
+  const double open_angle = jaw_angle_for(ctx.gripper, opening);
+  const JawLines open = jaw_lines(ctx.gripper, open_angle);
+  bool hypothesis = false;
+  for (const double back : cc.backoff_voxels) {
+    if (back * voxel > pushed) break;
+    Isometry3d Tb = T;
+    Tb.translation() -= back * voxel * T.linear().col(0);
+    Neighbors fine;
+    LocalPoints local;
+    ctx.tree.radius(closing_centre(ctx.gripper, Tb).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
+    gather_local(ctx.pc.cloud, fine.indices, Tb, ctx.gripper, local);
+    const auto in_region = std::count_if(local.object.begin(), local.object.end(),
+                                         [&](const Vector3d& q) { return open.encloses(q); });
+    if (std::size_t(in_region) < cc.min_object_points) break;
+    hypothesis = true;
+    Closing closing = close_jaws(ctx.gripper, open_angle, local.object, local.normals, local.environment,
+                                 ctx.config.force_closure.patch_voxels * voxel);
+    if (closing.failure == "collision_close") continue;
+    if (closing.closed) {
+      ++counts.collision_free;
+      out.push_back({.T = Tb, .opening = opening, .closing = std::move(closing)});
+    }
+    break;
+  }
+  counts.hypotheses += hypothesis ? 1 : 0;
+}
+
 /// One orientation at one pre-grasp opening: pushed, then closed (Sec. 5.3).
 void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matrix3d& R, double opening,
               std::vector<Candidate>& out, CandidateCounts& counts) {
@@ -170,34 +205,7 @@ void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matr
   Isometry3d T = Isometry3d::Identity();
   T.linear() = R;
   T.translation() = o_start + (*s - cc.clearance_voxels * voxel) * R.col(0);
-  // The closing on the full-resolution cloud; where the closing jaws would sweep into the
-  // environment (the tips into the ground under a low stone), the gripper backs off along the
-  // approach and closes again, never behind the push's start (the way back was checked by it).
-  const double open_angle = jaw_angle_for(ctx.gripper, opening);
-  const JawLines open = jaw_lines(ctx.gripper, open_angle);
-  bool hypothesis = false;
-  for (const double back : cc.backoff_voxels) {
-    if (back * voxel > *s - cc.clearance_voxels * voxel) break;
-    Isometry3d Tb = T;
-    Tb.translation() -= back * voxel * R.col(0);
-    Neighbors fine;
-    LocalPoints local;
-    ctx.tree.radius(closing_centre(ctx.gripper, Tb).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
-    gather_local(ctx.pc.cloud, fine.indices, Tb, ctx.gripper, local);
-    const auto in_region = std::count_if(local.object.begin(), local.object.end(),
-                                         [&](const Vector3d& q) { return open.encloses(q); });
-    if (std::size_t(in_region) < cc.min_object_points) break;
-    hypothesis = true;
-    Closing closing = close_jaws(ctx.gripper, open_angle, local.object, local.normals, local.environment,
-                                 ctx.config.force_closure.patch_voxels * voxel);
-    if (closing.failure == "collision_close") continue;
-    if (closing.closed) {
-      ++counts.collision_free;
-      out.push_back({.T = Tb, .opening = opening, .closing = std::move(closing)});
-    }
-    break;
-  }
-  counts.hypotheses += hypothesis ? 1 : 0;
+  close_with_backoff(ctx, T, opening, *s - cc.clearance_voxels * voxel, out, counts);
 }
 
 /// Candidates of one sample point: every orientation at every configured opening (and the
@@ -250,7 +258,6 @@ Vector3d minor_horizontal_axis(const PointCloud& cloud, const Vector3d& up) {
   const Eigen::Vector2d a = es.eigenvectors().col(0);  // smallest eigenvalue
   return (a.x() * u + a.y() * v).normalized();
 }
-
 
 Matrix3d local_reference_frame(std::span<const Vec3f> normals, const Vector3d& normal) {
   Matrix3d M = Matrix3d::Zero();
