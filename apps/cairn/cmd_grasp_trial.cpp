@@ -5,6 +5,7 @@
 
 #include <fstream>
 #include <iostream>
+#include <numbers>
 #include <nlohmann/json.hpp>
 
 #include "app_config.hpp"
@@ -79,8 +80,10 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   nlohmann::json settle_json = nullptr;
   if (!a.no_settle) {
     settle_json = sim::to_json(settled);
-    spdlog::info("grasp-trial: site at rest={} ({} islands, {:.1f} s simulated, {:.2f} s wall)", settled.settled,
-                 settled.islands, settled.sim_time, settled.wall_time);
+    spdlog::info("grasp-trial: site at rest={} ({} islands, a restart moves a stone {:.1f} mm, {:.2f} deg; {:.1f} s "
+                 "simulated, {:.2f} s wall)",
+                 settled.settled, settled.islands, 1e3 * settled.restart_shift, settled.restart_turn * 180.0 / std::numbers::pi,
+                 settled.sim_time, settled.wall_time);
   }
   GraspPlan plan;
   if (a.grasp_file.empty()) {

@@ -79,7 +79,26 @@ TEST_P(WorldAtRest, RestartingThePhysicsMovesNoStone) {
   std::printf("%s, seeds 1-%llu: %d at rest, largest motion in %.0f s after a restart %.2f mm, %.3f deg; %d not at rest\n",
               GetParam().c_str(), static_cast<unsigned long long>(kSeeds), settled, kRestart, 1e3 * worst.shift,
               worst.turn * 180.0 / std::numbers::pi, unsettled);
-  EXPECT_GE(settled, 1);
+  EXPECT_EQ(unsettled, 0);  // issue #15: every scenario, every seed
+}
+
+TEST(WorldAtRest, AStoneThatRocksAtEveryRestartIsAtRestOnlyWithinTheTolerance) {
+  // exp1 seed 15 holds a stone that a cold start rocks by ~1 cm and ~0.9 deg at every restart,
+  // however often the island is restarted: the site is at rest within the world-at-rest
+  // tolerance (1 cm, 1 deg) and says how far a restart moves it; with a 1 mm tolerance the same
+  // site is reported not at rest.
+  SimulationConfig cfg = settled_scenario("exp1");
+  SiteSettleResult within;
+  make_site(cfg, 15, &within);
+  EXPECT_TRUE(within.settled);
+  EXPECT_GT(within.restart_shift, 1e-3);
+  EXPECT_LE(within.restart_shift, cfg.physics.restart_shift);
+  EXPECT_LE(within.restart_turn, cfg.physics.restart_turn_deg * std::numbers::pi / 180.0);
+  cfg.physics.restart_shift = 1e-3;
+  SiteSettleResult strict;
+  make_site(cfg, 15, &strict);
+  EXPECT_FALSE(strict.settled);
+  EXPECT_GT(strict.restart_shift, 1e-3);
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, WorldAtRest, ::testing::Values("exp1", "exp2", "pile"));

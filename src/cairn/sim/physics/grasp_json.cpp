@@ -60,6 +60,8 @@ nlohmann::json to_json(const SiteSettleResult& r) {
           {"rounds", r.rounds},
           {"max_displacement", rounded_json(r.max_displacement)},
           {"max_rotation", rounded_json(r.max_rotation)},
+          {"restart_shift", rounded_json(r.restart_shift)},
+          {"restart_turn", rounded_json(r.restart_turn)},
           {"stone_poses", poses},
           {"sim_time", rounded_json(r.sim_time)},
           {"wall_time", r.wall_time}};

@@ -8,6 +8,7 @@
 #include <numbers>
 #include <sstream>
 
+#include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 
 #include "cairn/core/error.hpp"
@@ -30,6 +31,7 @@ constexpr double kJawStopHold = 0.05;       // [s] jaws must stay stopped this l
 constexpr double kEmptyMargin = 0.01;       // [m] jaws this close to fully closed hold nothing
 constexpr double kContactWindow = 0.05;     // [s] a jaw touches what it touched this recently
 constexpr double kExtentAngleStep = 0.5;    // [deg] search step of the shortest extent
+constexpr double kDegree = std::numbers::pi / 180.0;  // [rad]
 constexpr int kJawFootprintSamples = 9;     // per axis, terrain samples under the jaws' sweep
 
 void require(bool ok, const std::string& message) {
@@ -638,6 +640,8 @@ void validate(const PhysicsConfig& c) {
   require(positive(c.trace_interval), "trace_interval must be > 0");
   require(positive(c.site_settle_time) && positive(c.rest_speed) && positive(c.rest_hold),
           "site_settle_time, rest_speed and rest_hold must be > 0");
+  require(c.restart_limit >= 1 && non_negative(c.restart_shift) && non_negative(c.restart_turn_deg),
+          "restart_limit must be >= 1, restart_shift and restart_turn_deg >= 0");
 }
 
 GraspTrialResult run_grasp_trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
@@ -708,31 +712,51 @@ double largest_motion(const Site& site, std::span<const Isometry3d> poses) {
   return moved;
 }
 
+/// Largest centroid shift [m] and rotation [rad] of a stone under the poses.
+std::pair<double, double> largest_shift_and_turn(const Site& site, std::span<const Isometry3d> poses) {
+  double shift = 0.0, turn = 0.0;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const Vector3d c = site.stones[k].centroid;
+    shift = std::max(shift, (poses[k] * c - c).norm());
+    turn = std::max(turn, rotation_angle(poses[k].linear()));
+  }
+  return {shift, turn};
+}
+
+struct IslandSettle {
+  SettleResult settle;
+  double restart_shift = 0.0, restart_turn = 0.0;  // of the last restart
+};
+
 /// One island: settles from the generated poses, then restarts the physics from where the stones
 /// came to rest (as every later scene of the site will, without the warm start of the running
 /// simulation) until a restart moves no stone point more than rest_speed x rest_hold, at most
-/// kMaxRestarts times. Stone poses compose over the restarts.
-constexpr int kMaxRestarts = 4;
-
-SettleResult settle_island(Site island, const PhysicsConfig& config, const std::vector<Vector2d>& region) {
-  SettleResult total = settle_until_rest(island, config, {}, config.site_settle_time, config.rest_speed,
-                                         config.rest_hold, region);
+/// restart_limit times; at rest when the last restart stayed within restart_shift and
+/// restart_turn_deg. Stone poses compose over the restarts.
+IslandSettle settle_island(Site island, const PhysicsConfig& config, const std::vector<Vector2d>& region) {
+  IslandSettle out;
+  SettleResult& total = out.settle;
+  total = settle_until_rest(island, config, {}, config.site_settle_time, config.rest_speed, config.rest_hold, region);
   apply_stone_poses(island, total.stone_poses);
   island.at_rest = true;
-  bool converged = false;  // a fresh scene held the stones still
-  for (int restart = 0; restart < kMaxRestarts && total.settled; ++restart) {
+  bool within = false;  // the last restart moved the stones within the tolerance
+  for (int restart = 0; restart < config.restart_limit && total.settled; ++restart) {
     const SettleResult again = settle_until_rest(island, config, {}, config.site_settle_time, config.rest_speed,
                                                  config.rest_hold, region);
-    converged = largest_motion(island, again.stone_poses) < config.rest_speed * config.rest_hold;
+    const bool still = largest_motion(island, again.stone_poses) < config.rest_speed * config.rest_hold;
+    std::tie(out.restart_shift, out.restart_turn) = largest_shift_and_turn(island, again.stone_poses);
+    within = out.restart_shift <= config.restart_shift && out.restart_turn <= config.restart_turn_deg * kDegree;
     apply_stone_poses(island, again.stone_poses);
     for (std::size_t k = 0; k < total.stone_poses.size(); ++k) total.stone_poses[k] = again.stone_poses[k] * total.stone_poses[k];
     total.sim_time += again.sim_time;
     total.wall_time += again.wall_time;
     total.settled = again.settled;
-    if (converged) break;
+    spdlog::debug("settle: island of {} stones, restart {}: shift {:.1f} mm, turn {:.2f} deg", island.stones.size(),
+                  restart + 1, 1e3 * out.restart_shift, out.restart_turn / kDegree);
+    if (still) break;
   }
-  total.settled = total.settled && converged;
-  return total;
+  total.settled = total.settled && within;
+  return out;
 }
 
 }  // namespace
@@ -764,19 +788,23 @@ SiteSettleResult settle_site(Site& site, const PhysicsConfig& physics) {
   const std::vector<Vector2d> region = {-half, half};
   std::vector<bool> todo(partition.size(), true);
   std::vector<bool> island_settled(partition.size(), false);
+  std::vector<std::pair<double, double>> restart_motion(static_cast<std::size_t>(n));  // per stone: its island's
   while (true) {
     ++r.rounds;
-    std::vector<SettleResult> results(partition.size());
+    std::vector<IslandSettle> results(partition.size());
     tbb::parallel_for(std::size_t{0}, partition.size(), [&](std::size_t i) {
       if (!todo[i]) return;
       results[i] = settle_island(site_subset(generated, partition[i]), config, region);
     });
     for (std::size_t i = 0; i < partition.size(); ++i) {
       if (!todo[i]) continue;
-      r.sim_time += results[i].sim_time;
-      island_settled[i] = results[i].settled;
+      const SettleResult& island = results[i].settle;
+      r.sim_time += island.sim_time;
+      island_settled[i] = island.settled;
       for (std::size_t j = 0; j < partition[i].size(); ++j) {
-        r.stone_poses[static_cast<std::size_t>(partition[i][j])] = results[i].stone_poses[j];
+        const auto k = static_cast<std::size_t>(partition[i][j]);
+        r.stone_poses[k] = island.stone_poses[j];
+        restart_motion[k] = {results[i].restart_shift, results[i].restart_turn};
       }
     }
     // Islands whose stones came to rest near each other join and settle again, together.
@@ -810,11 +838,10 @@ SiteSettleResult settle_site(Site& site, const PhysicsConfig& physics) {
   }
   r.islands = static_cast<int>(partition.size());
   r.settled = std::all_of(island_settled.begin(), island_settled.end(), [](bool b) { return b; });
+  std::tie(r.max_displacement, r.max_rotation) = largest_shift_and_turn(generated, r.stone_poses);
   for (int k = 0; k < n; ++k) {
-    const Isometry3d& T = r.stone_poses[static_cast<std::size_t>(k)];
-    const Vector3d c = generated.stones[static_cast<std::size_t>(k)].centroid;
-    r.max_displacement = std::max(r.max_displacement, (T * c - c).norm());
-    r.max_rotation = std::max(r.max_rotation, rotation_angle(T.linear()));
+    r.restart_shift = std::max(r.restart_shift, restart_motion[static_cast<std::size_t>(k)].first);
+    r.restart_turn = std::max(r.restart_turn, restart_motion[static_cast<std::size_t>(k)].second);
   }
   apply_stone_poses(site, r.stone_poses);
   site.at_rest = true;
