@@ -901,7 +901,7 @@ INSTANTIATE_TEST_SUITE_P(SharedData, RealFiles, ::testing::ValuesIn(kRealFiles),
 
 TEST(RealData, EveryPointCloudFileIsCovered) {
   const auto root = real_data("");
-  if (!fs::exists(root)) GTEST_SKIP() << "real data not found: " << root;
+  CAIRN_REQUIRE_REAL_DATA("");
   const std::set<std::string> clouds_ext{".ply", ".pcd", ".xyz", ".csv", ".bin", ".vtk", ".npy"};
   std::set<std::string> listed;
   for (const auto& f : kRealFiles) listed.insert(f.path);

@@ -22,6 +22,13 @@ inline std::filesystem::path real_data(const std::filesystem::path& relative) {
   return shared_dir() / "data" / "real" / relative;
 }
 
+/// In CI (environment CI set and not "false", as .ci/run runs) a missing data set fails the test
+/// instead of skipping it.
+inline bool in_ci() {
+  const char* ci = std::getenv("CI");
+  return ci != nullptr && *ci != '\0' && std::string(ci) != "false";
+}
+
 /// A fresh, empty temporary directory for one test, private to this process: ctest runs the
 /// tests of one executable as parallel processes, so a shared name let one test delete the
 /// directory another was reading. Every directory handed out is removed when the process exits.
@@ -45,9 +52,11 @@ inline std::filesystem::path temp_dir(const std::string& name) {
 
 }  // namespace cairn::test
 
-/// Skips the test (with a message) when the shared real data set is not present.
-#define CAIRN_REQUIRE_REAL_DATA(relative)                                                  \
-  do {                                                                                     \
-    if (!std::filesystem::exists(::cairn::test::real_data(relative)))                      \
-      GTEST_SKIP() << "real data not found: " << ::cairn::test::real_data(relative);       \
+/// Skips the test (with a message) when the shared real data set is not present; fails it in CI.
+#define CAIRN_REQUIRE_REAL_DATA(relative)                                                      \
+  do {                                                                                         \
+    if (!std::filesystem::exists(::cairn::test::real_data(relative))) {                        \
+      if (::cairn::test::in_ci()) GTEST_FAIL() << "CI: real data not found: " << ::cairn::test::real_data(relative); \
+      GTEST_SKIP() << "real data not found: " << ::cairn::test::real_data(relative);           \
+    }                                                                                          \
   } while (0)
