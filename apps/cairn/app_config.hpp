@@ -7,6 +7,7 @@
 #include "cairn/core/config.hpp"
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
+#include "cairn/eval/experiment.hpp"
 #include "cairn/grasp/config.hpp"
 #include "cairn/mapping/config.hpp"
 #include "cairn/objects/config.hpp"
@@ -27,6 +28,7 @@ struct AppConfig {
   ObjectsConfig objects;
   grasp::GraspConfig grasp;
   sim::SimulationConfig simulation;  // generic defaults; `cairn simulate` starts from its scenario
+  eval::ExperimentConfig experiment;  // `cairn demo`: the experiment's own parameters
 
   template <class V>
   void visit(V& v) {
@@ -39,6 +41,7 @@ struct AppConfig {
     v("objects", objects, "object database: map updates under manipulation (Sec. 4.5)");
     v("grasp", grasp, "grasp pose planning (Sec. 5)");
     v("simulation", simulation, "simulator: site, excavator, LiDARs, state estimation, drone");
+    v("experiment", experiment, "experiments 1 and 2 end to end (Sec. 6, `cairn demo`)");
   }
 };
 

@@ -8,6 +8,7 @@ void add_segment_command(CLI::App& app, std::function<int()>& run);
 void add_config_command(CLI::App& app, std::function<int()>& run);
 void add_info_command(CLI::App& app, std::function<int()>& run);
 void add_demo_command(CLI::App& app, std::function<int()>& run);
+void add_pipeline_command(CLI::App& app, std::function<int()>& run);
 void add_simulate_command(CLI::App& app, std::function<int()>& run);
 void add_map_command(CLI::App& app, std::function<int()>& run);
 void add_scale_command(CLI::App& app, std::function<int()>& run);

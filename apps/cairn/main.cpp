@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   app::add_config_command(app, run);
   app::add_info_command(app, run);
   app::add_demo_command(app, run);
+  app::add_pipeline_command(app, run);
   app::add_simulate_command(app, run);
   app::add_map_command(app, run);
   app::add_scale_command(app, run);

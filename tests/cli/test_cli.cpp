@@ -303,11 +303,11 @@ TEST(Cli, ConfigDumpRoundTripsThroughAFile) {
   EXPECT_DOUBLE_EQ(j["segmentation"]["ground"]["d_plane"].get<double>(), 0.10);  // Table 3
 }
 
-TEST(Cli, DemoSimulatesMapsRegistersAndSegmentsTheSite) {
+TEST(Cli, PipelineSimulatesMapsRegistersAndSegmentsTheSite) {
   // A short run (8 s: half a swing cycle, enough to see the whole front) with the drone survey.
-  const auto dir = test::temp_dir("cli_demo");
-  const auto out = dir / "demo";
-  const CmdResult r = run("demo --seed 1 --duration 8 --out " + out.string());
+  const auto dir = test::temp_dir("cli_pipeline");
+  const auto out = dir / "pipeline";
+  const CmdResult r = run("pipeline --seed 1 --duration 8 --out " + out.string());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   // The drone cloud lands on the map (the map's own georeferencing error is ~2 cm).
@@ -334,9 +334,9 @@ TEST(Cli, DemoSimulatesMapsRegistersAndSegmentsTheSite) {
   EXPECT_NE(r.err.find("scan pairs"), std::string::npos);
 }
 
-TEST(Cli, DemoWithoutDroneSegmentsTheMapAlone) {
-  const auto dir = test::temp_dir("cli_demo_no_drone");
-  const CmdResult r = run("demo --seed 2 --duration 4 --no-drone --out " + (dir / "demo").string());
+TEST(Cli, PipelineWithoutDroneSegmentsTheMapAlone) {
+  const auto dir = test::temp_dir("cli_pipeline_no_drone");
+  const CmdResult r = run("pipeline --seed 2 --duration 4 --no-drone --out " + (dir / "demo").string());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_TRUE(j["registration"].is_string());  // "skipped (no drone survey)"

@@ -255,23 +255,31 @@ class Trial {
     ok = ok && phase("approach", [&] {
       return move(plan_.T_world_gripper, c_.approach_speed, false, [&] { return approach_clear(); });
     });
-    ok = ok && phase("close", [&] { return close(); }) && check_grasp();
+    // Without abort_on_failure the machine is blind to the simulator's verdicts after closing:
+    // a failure while lifting, holding or moving is recorded, and the motion goes on as planned
+    // (what a machine that only watches its own signals does). Contact on the approach or while
+    // closing still stops the arm (its force is measured), and with no stone between the jaws
+    // there is nothing to lift.
+    const bool blind = !c_.abort_on_failure;
+    const auto keep = [blind](bool verdict) { return verdict || blind; };
+    ok = ok && phase("close", [&] { return close(); }) && keep(check_grasp()) && r_.grasped_stone >= 0;
     if (ok) {
       const Isometry3d lifted = translated_world(plan_.T_world_gripper, plan_.lift_height * Vector3d::UnitZ());
       const Isometry3d above_place = translated_world(plan_.T_world_place, plan_.lift_height * Vector3d::UnitZ());
       stone_at_lift_ = scene_.stone_body_pose(r_.grasped_stone);
       T_gripper_stone0_ = scene_.gripper_pose().inverse() * stone_at_lift_;
       opening_at_lift_ = scene_.opening();
-      ok = phase("lift", [&] { return move(lifted, c_.lift_speed, false, [&] { return transport_ok(true); }); }) &&
-           phase("hold", [&] { return wait(c_.hold_time, [&] { return transport_ok(false); }); }) &&
+      ok = phase("lift", [&] { return move(lifted, c_.lift_speed, false, [&] { return keep(transport_ok(true)); }); }) &&
+           phase("hold", [&] { return wait(c_.hold_time, [&] { return keep(transport_ok(false)); }); }) &&
            grip_settled() &&
-           phase("move", [&] { return move(above_place, c_.move_speed, true, [&] { return transport_ok(false); }); }) &&
-           phase("hold", [&] { return wait(c_.hold_time, [&] { return transport_ok(false); }); }) && still_held();
+           phase("move", [&] { return move(above_place, c_.move_speed, true, [&] { return keep(transport_ok(false)); }); }) &&
+           phase("hold", [&] { return wait(c_.hold_time, [&] { return keep(transport_ok(false)); }); }) && keep(still_held());
     }
     if (ok || !c_.abort_on_failure) {
       if (r_.grasped_stone >= 0) {
         phase("place", [&] { return move(plan_.T_world_place, c_.lift_speed, false, [&] { return !supported(); }); });
       }
+      r_.T_world_release = target_;
       phase("release", [&] {
         scene_.set_jaw_command(-1.0);
         return wait(c_.release_time, [] { return true; });
@@ -281,6 +289,7 @@ class Trial {
                     [] { return true; });
       });
     } else {
+      r_.T_world_release = target_;
       phase("abort", [&] {
         scene_.set_jaw_command(-1.0);
         wait(c_.release_time, [] { return true; });

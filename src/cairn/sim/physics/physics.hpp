@@ -247,6 +247,9 @@ struct GraspTrialResult {
   double swing_in = 0.0;        // [m] stone displacement in the grip while lifting (no failure)
   double jaw_travel = 0.0;      // [m] further jaw closing while lifted (the paper's encoder)
   double place_error = -1.0;    // [m] final stone centroid vs expected placement (-1: not placed)
+  /// Commanded gripper pose when the jaws opened (the machine's kinematics: where lowering
+  /// stopped on contact, or the plan's place pose; after an early stop, where the arm was).
+  Eigen::Isometry3d T_world_release = Eigen::Isometry3d::Identity();
   /// Per stone T_world_stone after settling (identity = at its placement in the given Site).
   std::vector<Eigen::Isometry3d> stone_poses;
   bool settled = false;          // all stones at rest at the end

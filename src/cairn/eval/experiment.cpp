@@ -1,0 +1,553 @@
+#include "cairn/eval/experiment.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <optional>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/transform.hpp"
+#include "cairn/eval/tracker.hpp"
+#include "cairn/mapping/mapper.hpp"
+#include "cairn/objects/pipeline.hpp"
+#include "cairn/registration/scale_recovery.hpp"
+#include "cairn/sim/drone.hpp"
+#include "cairn/mapping/map_edit.hpp"
+#include "cairn/sim/world.hpp"
+
+namespace cairn::eval {
+namespace {
+
+using Eigen::Isometry3d;
+using Vec2d = Eigen::Vector2d;
+constexpr double kDeg = 180.0 / std::numbers::pi;
+
+/// Horizontal bounding box of a cloud (world coordinates).
+Eigen::AlignedBox2d xy_bounds(const PointCloud& c) {
+  Eigen::AlignedBox2d b;
+  for (std::size_t i = 0; i < c.size(); ++i) b.extend(c.world(i).head<2>());
+  return b;
+}
+
+void validate(const ExperimentConfig& c) {
+  if (c.experiment != "exp1" && c.experiment != "exp2")
+    throw ConfigError("experiment must be 'exp1' or 'exp2', not '" + c.experiment + "'");
+  if (c.rounds < 0 || c.max_attempts < 1) throw ConfigError("experiment: rounds >= 0 and max_attempts >= 1 required");
+  if (!(c.registration_period > 0) || !(c.registration_timeout >= c.registration_period))
+    throw ConfigError("experiment: registration_period > 0 and registration_timeout >= registration_period required");
+  if (!(c.row_spacing > 0) || !(c.lift_height > 0) || !(c.place_depth >= 0) || !(c.ground_radius > 0))
+    throw ConfigError("experiment: row_spacing, lift_height, ground_radius > 0 and place_depth >= 0 required");
+  const SlipDetectionConfig& d = c.detection;
+  if (!(d.min_load >= 0) || !(d.load_drop > 0 && d.load_drop < 1) || !(d.jaw_travel > 0) || !(d.target_tolerance > 0))
+    throw ConfigError("experiment detection: min_load >= 0, load_drop in (0, 1), positive jaw_travel and target_tolerance");
+  if (!(c.place_support > 0 && c.place_support <= 1)) throw ConfigError("experiment: place_support must lie in (0, 1]");
+  if (c.inject_friction < 0) throw ConfigError("experiment: inject_friction must be >= 0");
+  c.grasp.validate();
+}
+
+int rounds_of(const ExperimentConfig& c) { return c.rounds > 0 ? c.rounds : c.experiment == "exp1" ? 1 : 4; }
+
+/// Simulated time the machine's estimate and sweeps must cover: the registration, then every
+/// attempt's trial (at most ~carry_time) and rescan.
+double duration(const ExperimentConfig& c) {
+  const ObjectTrackingConfig& t = c.tracking;
+  return std::max(t.initial_scan, c.registration_timeout) +
+         rounds_of(c) * t.simulation.site.stones.count * c.max_attempts * (2.0 * t.carry_time + t.rescan) + 1.0;
+}
+
+/// The mean of a phase's samples of `f` over [t0, t1] (NaN when none).
+template <class F>
+double trace_mean(const std::vector<sim::TraceSample>& trace, double t0, double t1, F f) {
+  double sum = 0.0;
+  int n = 0;
+  for (const sim::TraceSample& s : trace)
+    if (s.time >= t0 && s.time <= t1) sum += f(s), ++n;
+  return n > 0 ? sum / n : std::nan("");
+}
+
+const sim::PhaseTiming* find_phase(const sim::GraspTrialResult& r, const std::string& name) {
+  for (const sim::PhaseTiming& p : r.phases)
+    if (p.name == name) return &p;
+  return nullptr;
+}
+
+}  // namespace
+
+GraspDetection detect_grasp_failure(const sim::GraspTrialResult& r, const SlipDetectionConfig& c) {
+  GraspDetection d;
+  const sim::PhaseTiming* close = find_phase(r, "close");
+  const sim::PhaseTiming* hold = find_phase(r, "hold");  // the first: hanging still after the lift
+  const sim::PhaseTiming* place = find_phase(r, "place");
+  if (!close || !hold) {  // the machine stopped before lifting (contact on the approach or closing)
+    d.failed = true;
+    d.signs.push_back("not_lifted");
+    return d;
+  }
+  const auto load = [](const sim::TraceSample& s) { return s.arm_load; };
+  const auto opening = [](const sim::TraceSample& s) { return s.opening; };
+  const double lowering = place ? place->start : r.phases.back().start;
+  d.lifted_load = trace_mean(r.trace, hold->start, hold->end, load);
+  d.release_load = trace_mean(r.trace, lowering - 0.3, lowering, load);  // the last samples carried
+  double closed = trace_mean(r.trace, close->end - 0.1, close->end, opening), tightest = closed;
+  for (const sim::TraceSample& s : r.trace)
+    if (s.time > close->end && s.time <= lowering) tightest = std::min(tightest, s.opening);
+  d.jaw_travel = std::isfinite(closed) ? closed - tightest : 0.0;
+  if (!(d.lifted_load >= c.min_load)) d.signs.push_back("nothing_lifted");
+  if (d.jaw_travel > c.jaw_travel) d.signs.push_back("jaws_closed_further");
+  if (d.lifted_load >= c.min_load && !(d.release_load >= (1.0 - c.load_drop) * d.lifted_load))
+    d.signs.push_back("load_dropped");
+  d.held_at_release = d.lifted_load >= c.min_load && d.release_load >= (1.0 - c.load_drop) * d.lifted_load;
+  d.failed = !d.signs.empty();
+  return d;
+}
+
+namespace {
+
+/// The experiment on one Tracker: registration while scanning, then the rounds of planned moves.
+class Experiment {
+ public:
+  Experiment(const ExperimentConfig& c, const ExperimentProgress& progress)
+      : c_(c), progress_(progress), tracker_(c.tracking, progress_, duration(c)) {
+    out.experiment = c.experiment;
+    out.seed = c.tracking.seed;
+    out.stones = int(tracker_.machine().world().site.stones.size());
+  }
+  void register_while_scanning();
+  void populate();
+  void run_round(int round);
+  ExperimentResult out;
+
+ private:
+  [[nodiscard]] std::vector<Vec2d> row(int round) const;
+  [[nodiscard]] std::optional<Vec2d> free_target(int round, const ObjectRecord& obj, std::vector<bool>& used) const;
+  [[nodiscard]] double ground_height(const PointCloud& map, const Vec2d& xy, double fallback) const;
+  [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
+  bool attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target);
+  void score_round(int round, const RoundRecord& rr);
+  void progress(const std::string& what, int done, int total) const {
+    if (progress_) progress_(what, done, total);
+  }
+
+  const ExperimentConfig& c_;
+  const ExperimentProgress& progress_;
+  Tracker tracker_;
+  std::optional<PointCloud> drone_;     // registered drone cloud (map frame), grasped objects cut out
+  std::vector<PointCloud> merged_;      // registration's objects (LiDAR + drone, map frame)
+  std::vector<bool> moved_;             // per stone: moved since the drone flew
+  std::map<int, Vec2d> targets_;        // this round's target per stone (map frame)
+  int moves_ = 0;
+  double planning_ms_ = 0.0, physics_ms_ = 0.0, realign_ms_ = 0.0;
+
+ public:
+  void finish(double total_ms);
+};
+
+void Experiment::register_while_scanning() {
+  Stopwatch total;
+  ScanningMachine& m = tracker_.machine();
+  const sim::SimulatedWorld& w = m.world();
+  progress("drone survey", 0, 1);
+  const sim::DroneSurvey survey = sim::simulate_drone(w.site, w.scene, m.config().drone, c_.tracking.seed);
+  const ScaleRecoveryResult scale = recover_scale(sim::to_colmap_model(survey), sim::vins_trajectory(survey));
+  PointCloud cloud = survey.cloud;
+  cloud.labels.clear();  // the survey's labels are truth: never seen by the machine
+  transform_cloud(cloud, scale.T_metric_sfm);
+  out.timings.add("drone", total.lap_ms());
+  Vec3d centre = Vec3d::Zero();  // where the error is measured: the stones' mean centroid
+  for (const sim::Stone& s : w.site.stones) centre += s.centroid / double(w.site.stones.size());
+  RegistrationOutcome& reg = out.registration;
+  double mapping_ms = 0.0, registration_ms = 0.0;
+  for (double t = c_.registration_period; t <= c_.registration_timeout + 1e-9; t += c_.registration_period) {
+    progress("scanning and registering", int(t), int(c_.registration_timeout));
+    Stopwatch sw;
+    m.scan(t - c_.registration_period, t);
+    mapping_ms += sw.lap_ms();
+    const PointCloud map = m.mapper().map();
+    if (map.empty()) continue;
+    const GlobalRegistrationResult r = register_global(cloud, map, c_.tracking.segmentation, c_.registration);
+    RegistrationAttempt a{.time = t, .accepted = r.success, .map_points = map.size(), .ms = sw.lap_ms(), .reason = r.reason};
+    registration_ms += a.ms;
+    const Isometry3d E = tracker_.truth()->offset->map_offset(map);  // scoring only
+    const Similarity truth = Similarity::from_isometry(E.inverse()) * survey.T_world_sfm * scale.T_metric_sfm.inverse();
+    const RegistrationError e = registration_error(Similarity::from_isometry(r.T_target_source), truth, E.inverse() * centre);
+    a.rotation_error_deg = e.rotation_deg;
+    a.translation_error_m = e.translation_m;
+    reg.tries.push_back(a);
+    ++reg.attempts;
+    if (!r.success) continue;
+    reg.success = true;
+    reg.first_success_s = t;
+    reg.rotation_error_deg = e.rotation_deg;
+    reg.translation_error_m = e.translation_m;
+    reg.timings = r.timings;
+    transform_cloud(cloud, r.T_target_source);
+    drone_ = std::move(cloud);
+    for (const auto& o : r.objects) merged_.push_back(o.cloud);
+    break;
+  }
+  if (!reg.success) out.notes.push_back("registration: no attempt accepted within the timeout; planning without the drone");
+  // The database is filled after the initial scan (two swings), as the object tracking does.
+  Stopwatch sw;
+  if (m.now() < c_.tracking.initial_scan) m.scan(m.now(), c_.tracking.initial_scan);
+  mapping_ms += sw.lap_ms();
+  out.timings.add("mapping", mapping_ms);
+  out.timings.add("registration", registration_ms);
+}
+
+void Experiment::populate() {
+  Stopwatch sw;
+  tracker_.populate();
+  out.stones_tracked = tracker_.result.stones_tracked;
+  for (const std::string& u : tracker_.result.unmatched) out.notes.push_back(u);
+  moved_.assign(std::size_t(out.stones), false);
+  out.timings.add("segmentation", sw.lap_ms());
+}
+
+std::vector<Vec2d> Experiment::row(int round) const {
+  const ScanningMachine& m = tracker_.machine();
+  const double heading = m.config().excavator.base_yaw_deg / kDeg;
+  const double d = round % 2 == 1 ? c_.row_distance : c_.row_distance_even;
+  const int n = int(tracker_.machine().world().site.stones.size());
+  // The row's places from its middle outwards: n targets, then as many spares.
+  std::vector<Vec2d> places;
+  for (int i = 0; i < 2 * n; ++i) {
+    const double offset = (i % 2 == 0 ? 1.0 : -1.0) * std::ceil(i / 2.0) * c_.row_spacing;
+    const Vec2d local(d, offset - (n % 2 == 0 ? 0.5 * c_.row_spacing : 0.0));
+    places.push_back(m.base().head<2>() + Eigen::Rotation2Dd(heading) * local);
+  }
+  return places;
+}
+
+/// The first unused place of the round's row no other object comes near (the database's view).
+std::optional<Vec2d> Experiment::free_target(int round, const ObjectRecord& obj, std::vector<bool>& used) const {
+  const std::vector<Vec2d> places = row(round);
+  const double half = 0.5 * xy_bounds(obj.cloud).diagonal().norm();
+  const std::vector<ObjectRecord> others = tracker_.db().objects();
+  for (std::size_t i = 0; i < places.size(); ++i) {
+    if (used[i]) continue;
+    bool clear = true;
+    for (const ObjectRecord& o : others) {
+      if (o.id == obj.id || o.status == ObjectStatus::lost) continue;
+      const Eigen::AlignedBox2d b = xy_bounds(o.cloud);
+      const Vec2d q = places[i].cwiseMax(b.min()).cwiseMin(b.max());
+      clear = clear && (q - places[i]).norm() > half + c_.target_clearance;
+    }
+    if (!clear) continue;
+    used[i] = true;
+    return places[i];
+  }
+  return std::nullopt;
+}
+
+/// The ground's height at xy from the map: the median of the map points within ground_radius.
+double Experiment::ground_height(const PointCloud& map, const Vec2d& xy, double fallback) const {
+  std::vector<double> z;
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Vec3d p = map.world(i);
+    if ((p.head<2>() - xy).norm() <= c_.ground_radius) z.push_back(p.z());
+  }
+  if (z.size() < 10) return fallback;
+  std::nth_element(z.begin(), z.begin() + long(z.size() / 2), z.end());
+  return z[z.size() / 2];
+}
+
+/// The registration's merged object at this object (first move after the drone flew), else the
+/// database's own cloud (Sec. 5.2).
+const PointCloud& Experiment::planning_model(const ObjectRecord& obj) const {
+  const PointCloud* best = &obj.cloud;
+  double best_d = 0.5;  // [m] the merged object's centroid lies near the object's
+  for (const PointCloud& o : merged_) {
+    if (o.empty()) continue;
+    const double d = (o.origin + centroid(o.points).cast<double>() - obj.centroid).norm();
+    if (d < best_d) best_d = d, best = &o;
+  }
+  return *best;
+}
+
+/// The lowest points of a cloud: its `share` quantile of z (the object's underside, where it
+/// rests on the ground).
+double low_z(const PointCloud& c, double share) {
+  std::vector<double> z;
+  z.reserve(c.size());
+  for (std::size_t i = 0; i < c.size(); ++i) z.push_back(c.world(i).z());
+  if (z.empty()) return 0.0;
+  const auto k = z.begin() + long(share * double(z.size() - 1));
+  std::nth_element(z.begin(), k, z.end());
+  return *k;
+}
+
+/// The drone cloud without what a grasp removed from the map (the stone is no longer there).
+void cut(PointCloud& cloud, const std::vector<MapEdit>& edits) {
+  for (const MapEdit& e : edits) {
+    const MapEditRegion region(e);
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < cloud.size(); ++i)
+      if (!region.removes(cloud.world(i))) cloud.points[kept++] = cloud.points[i];
+    cloud.points.resize(kept);
+    cloud.colors.clear(), cloud.normals.clear(), cloud.times.clear(), cloud.labels.clear();
+  }
+}
+
+/// One attempt at moving the stone to `target`: plan on what the machine senses, execute in the
+/// physics, update the database (Eq. 3), rescan and re-align. True when the machine sees the
+/// object at its target.
+bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target) {
+  ScanningMachine& m = tracker_.machine();
+  const ObjectRecord obj = *tracker_.db().object(tr.object);
+  GraspRecord g{.round = round, .stone = tr.stone, .attempt = attempt, .object = tr.object, .target = target};
+  const PointCloud map = m.mapper().map();
+  const auto before = tracker_.truth();
+  const Isometry3d E = before->offset->map_offset(map);  // scoring only
+  const bool first = drone_ && !moved_[std::size_t(tr.stone)];
+  const PointCloud& model = first ? planning_model(obj) : obj.cloud;
+  const grasp::GraspPlanning p =
+      grasp::plan_grasps(map, model, first ? &*drone_ : nullptr, m.config().gripper, c_.grasp);
+  g.planning_ms = p.timings_ms.at("total");
+  planning_ms_ += g.planning_ms;
+  g.force_closure = p.counts.force_closure;
+  if (p.grasps.empty()) {  // the machine knows: rescan (one swing) and plan again
+    g.failure_reasons = {"no_grasp"};
+    g.detection.failed = g.detected = true;
+    g.detection.signs = {"no_grasp"};
+    out.grasps.push_back(g);
+    m.scan(m.now(), m.now() + c_.tracking.rescan);
+    return false;
+  }
+  const grasp::Grasp& best = p.grasps.front();
+  g.costs = best.costs;
+  g.T_map_gripper = best.T_map_gripper;
+  MoveRecord mv{.round = round, .stone = tr.stone, .object = tr.object, .purity = tr.purity, .time = m.now()};
+  const Operation grasp_op = tracker_.commit_grasp(mv, tr, best.T_map_gripper, map, *before, E);
+  if (drone_) cut(*drone_, grasp_op.map_edits);
+  // Place: the object's centroid over the target, lowered until contact (commanded place_depth
+  // below the contact the map predicts: the ground under the target vs the object's underside).
+  const double bottom = low_z(obj.cloud, 0.02);
+  const double dz = ground_height(map, target, bottom) - bottom - c_.place_depth;
+  // The stone's centre of mass as the planner estimates it (Sec. 5.2: the planning cloud with
+  // the unseen side completed) goes over the target; the object's visible-points centroid lies
+  // `bias` from it, and that is where the machine expects to see it after the rescan.
+  const Vec2d bias = (p.cloud.mass_centroid - obj.centroid).head<2>();
+  const Vec2d shift = target - p.cloud.mass_centroid.head<2>();
+  const Isometry3d T_MG_place = Eigen::Translation3d(shift.x(), shift.y(), dz) * best.T_map_gripper;
+  GraspPlan plan = grasp::to_grasp_plan(best, GraspPlan{});
+  plan.lift_height = c_.lift_height;
+  const double t0 = m.now();
+  plan.T_world_gripper = m.E_state(t0) * best.T_map_gripper;  // commanded in the map frame
+  plan.T_world_place = m.E_state(t0 + c_.tracking.carry_time) * T_MG_place;
+  plan.target_stone = tr.stone;  // the physics' truth: grasping another stone is a failure
+  sim::PhysicsConfig physics = m.config().physics;
+  physics.abort_on_failure = false;  // the machine carries on until it notices itself
+  physics.place_support_fraction = c_.place_support;
+  if (c_.inject_friction > 0 && moves_ == c_.inject_move && attempt == 1) physics.friction = c_.inject_friction;
+  Stopwatch sw;
+  sim::GraspTrialResult r = sim::run_grasp_trial(m.world().site, plan, m.config().gripper, physics);
+  sim::Site& site = m.world().site;
+  sim::apply_stone_poses(site, r.stone_poses);
+  tracker_.world_moved(r.stone_poses);
+  if (!r.settled) tracker_.world_moved(sim::settle_site(site, m.config().physics).stone_poses);
+  m.world().scene = sim::make_world_scene(site, m.config().terrain_mesh_spacing);
+  g.sim_time = r.sim_time;
+  g.wall_s = sw.lap_ms() / 1000.0;
+  physics_ms_ += 1000.0 * g.wall_s;
+  g.success = r.success;
+  g.failure_reasons = r.failure_reasons;
+  g.detection = detect_grasp_failure(r, c_.detection);
+  // Release (Eq. 3): where the arm opened the jaws, when the stone was still held; else the
+  // machine expects it where it was and searches there (relocate_object).
+  const sim::PhaseTiming* opened = find_phase(r, "release");
+  const double t_release = t0 + (opened ? opened->start : r.sim_time);
+  const Isometry3d T_MG_release =
+      g.detection.held_at_release ? m.E_state(t_release).inverse() * r.T_world_release : best.T_map_gripper;
+  (void)tracker_.db().commit(release_operation(*tracker_.db().object(tr.object), T_MG_release, t_release));
+  tracker_.score(mv, tr, E, /*predicted=*/true);
+  sw.lap_ms();
+  (void)tracker_.rescan_and_realign(mv, tr, t0 + r.sim_time);
+  realign_ms_ += sw.lap_ms();
+  tracker_.result.moves.push_back(mv);
+  g.move = mv;
+  g.place_error_m = r.place_error;
+  // The machine's check: the rescanned object at its target.
+  const ObjectRecord after = *tracker_.db().object(tr.object);
+  const bool at_target = after.status != ObjectStatus::lost &&
+                         (after.centroid.head<2>() + bias - target).norm() <= c_.detection.target_tolerance;
+  if (!at_target) g.detection.signs.push_back("not_at_target");
+  g.detection.failed = g.detected = !g.detection.signs.empty();
+  // Truth (scoring): the stone's centroid in the map's frame against the target.
+  const auto now = tracker_.truth();
+  const Isometry3d E_now = now->offset->map_offset(m.mapper().map());
+  g.target_error_m = ((E_now.inverse() * site.stones[std::size_t(tr.stone)].centroid).head<2>() - target).norm();
+  out.grasps.push_back(g);
+  spdlog::debug("demo: round {} stone {} attempt {}: {} ({}), detected {}, target error {:.3f} m", round, tr.stone,
+                attempt, r.success ? "held" : "failed", r.message, g.detected, g.target_error_m);
+  return at_target;
+}
+
+void Experiment::run_round(int round) {
+  std::vector<Tracker::Tracked*> order;  // largest first (Sec. 5.1): the database's point counts
+  for (Tracker::Tracked& t : tracker_.tracked()) order.push_back(&t);
+  std::vector<std::size_t> points;
+  for (const Tracker::Tracked* t : order) points.push_back(tracker_.db().object(t->object)->num_points);
+  std::vector<std::size_t> idx(order.size());
+  for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
+  std::stable_sort(idx.begin(), idx.end(), [&](std::size_t a, std::size_t b) { return points[a] > points[b]; });
+  std::vector<bool> used(row(round).size(), false);
+  targets_.clear();
+  for (std::size_t i = 0; i < idx.size(); ++i) {
+    Tracker::Tracked& tr = *order[idx[i]];
+    progress("round " + std::to_string(round) + ": moving stones", int(i), int(idx.size()));
+    const std::string name = "round " + std::to_string(round) + ": object " + std::to_string(tr.object);
+    if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
+      out.notes.push_back(name + " is lost, not moved");
+      continue;
+    }
+    const std::optional<Vec2d> target = free_target(round, *tracker_.db().object(tr.object), used);
+    if (!target) {
+      out.notes.push_back(name + ": no free place in the row");
+      continue;
+    }
+    targets_[tr.stone] = *target;
+    ++moves_;
+    ++out.moves;
+    for (int a = 1; a <= c_.max_attempts; ++a) {
+      if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
+        out.notes.push_back(name + " was lost after attempt " + std::to_string(a - 1));
+        break;
+      }
+      if (attempt(round, a, tr, *target)) break;
+    }
+    moved_[std::size_t(tr.stone)] = true;
+  }
+  RoundRecord rr{.round = round};
+  tracker_.resegment(rr);
+  score_round(round, rr);
+}
+
+void Experiment::score_round(int round, const RoundRecord& rr) {
+  ScanningMachine& m = tracker_.machine();
+  const PointCloud map = m.mapper().map();
+  const auto t = tracker_.truth();
+  const Isometry3d E = t->offset->map_offset(map);
+  ExperimentRound er{.round = round, .resegmentation = rr};
+  for (const Tracker::Tracked& tr : tracker_.tracked()) {
+    MoveRecord scored;
+    tracker_.score(scored, tr, E, /*predicted=*/false);
+    ExperimentObject o{.object = tr.object, .stone = tr.stone, .translation_error_m = scored.error_m,
+                       .rotation_error_deg = scored.error_deg};
+    if (const auto it = targets_.find(tr.stone); it != targets_.end()) {
+      const Vec3d c = E.inverse() * m.world().site.stones[std::size_t(tr.stone)].centroid;
+      o.target_error_m = (c.head<2>() - it->second).norm();
+      out.placed += o.target_error_m <= c_.detection.target_tolerance;
+    }
+    er.objects.push_back(o);
+  }
+  er.ghost_fraction = tracker_.ghost_share(map, *t, E);
+  for (const ObjectRecord& o : tracker_.db().objects(false)) er.lost += o.status == ObjectStatus::lost;
+  er.duplicated = int(rr.new_on_tracked);
+  out.rounds.push_back(er);
+}
+
+void Experiment::finish(double total_ms) {
+  out.timings.add("planning", planning_ms_);
+  out.timings.add("physics", physics_ms_);
+  out.timings.add("rescan_realign", realign_ms_);
+  out.timings.add("total", total_ms);
+  // Per stone and round: success at the first attempt, within the attempts (truth: the grasp
+  // held and the stone ended at its target).
+  const double tol = c_.detection.target_tolerance;
+  std::map<std::pair<int, int>, std::vector<const GraspRecord*>> by_move;
+  for (const GraspRecord& g : out.grasps) {
+    by_move[{g.round, g.stone}].push_back(&g);
+    const bool failed = !g.success || !(g.target_error_m >= 0 && g.target_error_m <= tol);
+    out.failures += failed;
+    out.failures_detected += failed && g.detected;
+    out.false_alarms += !failed && g.detected;
+  }
+  for (const auto& [_, gs] : by_move) {
+    const auto ok = [tol](const GraspRecord* g) { return g->success && g->target_error_m >= 0 && g->target_error_m <= tol; };
+    out.first_attempt_success += ok(gs.front());
+    out.within_attempts += std::any_of(gs.begin(), gs.end(), ok);
+  }
+}
+
+}  // namespace
+
+ExperimentResult run_experiment(const ExperimentConfig& config, const ExperimentProgress& progress) {
+  validate(config);
+  Stopwatch sw;
+  Experiment e(config, progress);
+  e.register_while_scanning();
+  e.populate();
+  for (int r = 1; r <= rounds_of(config); ++r) e.run_round(r);
+  e.finish(sw.lap_ms());
+  return std::move(e.out);
+}
+
+namespace {
+nlohmann::json timings_json(const Timings& t) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [stage, ms] : t.stages) j[stage] = ms;
+  return j;
+}
+nlohmann::json detection_json(const GraspDetection& d) {
+  return {{"failed", d.failed}, {"signs", d.signs}, {"lifted_load_n", d.lifted_load},
+          {"release_load_n", d.release_load}, {"jaw_travel_m", d.jaw_travel}, {"held_at_release", d.held_at_release}};
+}
+nlohmann::json or_null(double v) { return v >= 0 ? nlohmann::json(v) : nlohmann::json(nullptr); }
+}  // namespace
+
+nlohmann::json to_json(const ExperimentResult& r) {
+  const RegistrationOutcome& g = r.registration;
+  nlohmann::json tries = nlohmann::json::array();
+  for (const RegistrationAttempt& a : g.tries)
+    tries.push_back({{"time_s", a.time}, {"accepted", a.accepted}, {"map_points", a.map_points},
+                     {"rotation_error_deg", a.rotation_error_deg}, {"translation_error_m", a.translation_error_m},
+                     {"ms", a.ms}, {"reason", a.reason}});
+  nlohmann::json grasps = nlohmann::json::array();
+  for (const GraspRecord& x : r.grasps)
+    grasps.push_back({{"round", x.round}, {"object", x.object}, {"stone", x.stone}, {"attempt", x.attempt},
+                      {"success", x.success}, {"failure_reasons", x.failure_reasons}, {"detected", x.detected},
+                      {"detection", detection_json(x.detection)}, {"planning_ms", x.planning_ms},
+                      {"force_closure", x.force_closure},
+                      {"costs", {{"align_rad", x.costs.align}, {"enclose_m", x.costs.enclose}, {"dist_m", x.costs.dist}}},
+                      {"T_map_gripper", pose_to_json(x.T_map_gripper)}, {"target", {x.target.x(), x.target.y()}},
+                      {"target_error_m", or_null(x.target_error_m)}, {"sim_time_s", x.sim_time}, {"wall_s", x.wall_s},
+                      {"place_error_m", or_null(x.place_error_m)},
+                      {"database", {{"predicted_error_m", x.move.predicted_error_m},
+                                    {"predicted_error_deg", x.move.predicted_error_deg},
+                                    {"error_m", x.move.error_m}, {"error_deg", x.move.error_deg},
+                                    {"found", x.move.found}, {"reason", x.move.reason},
+                                    {"ghost_share", x.move.ghost_share}}}});
+  nlohmann::json rounds = nlohmann::json::array();
+  for (const ExperimentRound& x : r.rounds) {
+    nlohmann::json objects = nlohmann::json::array();
+    for (const ExperimentObject& o : x.objects)
+      objects.push_back({{"object", o.object}, {"stone", o.stone}, {"translation_error_m", o.translation_error_m},
+                         {"rotation_error_deg", o.rotation_error_deg}, {"target_error_m", or_null(o.target_error_m)}});
+    const RoundRecord& s = x.resegmentation;
+    rounds.push_back({{"round", x.round}, {"objects", objects}, {"ghost_fraction", x.ghost_fraction}, {"lost", x.lost},
+                      {"duplicated", x.duplicated},
+                      {"resegmentation", {{"matched", s.matched}, {"new_objects", s.new_objects},
+                                          {"new_on_tracked", s.new_on_tracked}, {"new_on_untracked", s.new_on_untracked},
+                                          {"new_on_terrain", s.new_on_terrain}, {"vanished", s.vanished},
+                                          {"moved_unexpectedly", s.moved_unexpectedly}, {"objects", s.objects}}}});
+  }
+  return {{"experiment", r.experiment},
+          {"seed", r.seed},
+          {"stones", r.stones},
+          {"stones_tracked", r.stones_tracked},
+          {"registration", {{"success", g.success}, {"first_success_s", or_null(g.first_success_s)},
+                            {"attempts", g.attempts}, {"rotation_error_deg", g.rotation_error_deg},
+                            {"translation_error_m", g.translation_error_m}, {"timings_ms", timings_json(g.timings)},
+                            {"tries", tries}}},
+          {"grasps", grasps},
+          {"rounds", rounds},
+          {"summary", {{"moves", r.moves}, {"placed", r.placed}, {"first_attempt_success", r.first_attempt_success},
+                       {"within_attempts", r.within_attempts}, {"failures", r.failures},
+                       {"failures_detected", r.failures_detected}, {"false_alarms", r.false_alarms}}},
+          {"notes", r.notes},
+          {"timings_ms", timings_json(r.timings)}};
+}
+
+}  // namespace cairn::eval
