@@ -80,7 +80,8 @@ ExperimentConfig short_exp1(int stones, const std::string& db) {
   c.tracking.simulation.site.stones.count = stones;
   c.tracking.database = fresh_db(db);
 #if defined(__SANITIZE_ADDRESS__)
-  c.tracking.initial_scan = 6.0;  // the same path, short (the figures are asserted in Release)
+  c.tracking.simulation.site.stones.count = 1;  // the same path, short (figures asserted in Release)
+  c.tracking.initial_scan = 6.0;
   c.tracking.rescan = 4.0;
   c.registration_timeout = 10.0;
   c.max_attempts = 1;
