@@ -124,7 +124,9 @@ TEST(Experiment, Exp1RegistersPlansGraspsAndDetectsEveryFailure) {
     std::printf("stone %d attempt %d: truth %s (%zu reasons), detected %d, target error %.2f m, planning %.0f ms\n",
                 g.stone, g.attempt, failed ? "failed" : "ok", g.failure_reasons.size(), g.detected, g.target_error_m,
                 g.planning_ms);
-    if (failed) EXPECT_TRUE(g.detected) << "stone " << g.stone << " attempt " << g.attempt;
+    if (failed) {
+      EXPECT_TRUE(g.detected) << "stone " << g.stone << " attempt " << g.attempt;
+    }
   }
   EXPECT_EQ(r.failures, r.failures_detected);  // every failure seen by the machine
   // False alarms (the rescan's check of the target, 10 cm, is coarser than the placement) are
