@@ -23,6 +23,7 @@ namespace {
 using Eigen::Isometry3d;
 using Vec2d = Eigen::Vector2d;
 constexpr double kDeg = 180.0 / std::numbers::pi;
+constexpr double kMergedNear = 0.5;  // [m] a merged object's centroid lies this near the object's
 
 /// Horizontal bounding box of a cloud (world coordinates).
 Eigen::AlignedBox2d xy_bounds(const PointCloud& c) {
@@ -256,14 +257,8 @@ double Experiment::ground_height(const PointCloud& map, const Vec2d& xy, double 
 /// The registration's merged object at this object (first move after the drone flew), else the
 /// database's own cloud (Sec. 5.2).
 const PointCloud& Experiment::planning_model(const ObjectRecord& obj) const {
-  const PointCloud* best = &obj.cloud;
-  double best_d = 0.5;  // [m] the merged object's centroid lies near the object's
-  for (const PointCloud& o : merged_) {
-    if (o.empty()) continue;
-    const double d = (o.origin + centroid(o.points).cast<double>() - obj.centroid).norm();
-    if (d < best_d) best_d = d, best = &o;
-  }
-  return *best;
+  const PointCloud* merged = nearest_cloud(merged_, obj.centroid, kMergedNear);
+  return merged ? *merged : obj.cloud;
 }
 
 /// The lowest points of a cloud: its `share` quantile of z (the object's underside, where it

@@ -23,6 +23,7 @@ namespace {
 
 using Eigen::Isometry3d;
 constexpr double kTruthSpacing = 0.04;  // [m] sampling of the true surfaces
+constexpr double kMergedNear = 0.5;     // [m] a merged object's centroid lies this near its segment's
 
 /// What the machine knows about one site after scanning it.
 struct SensedSite {
@@ -101,15 +102,8 @@ SensedSite sense_site(const std::string& scenario, std::uint64_t seed, const Gra
 /// The object's model: its segment, or the registered scene's object holding it (LiDAR + drone).
 PointCloud object_model(const SensedSite& s, std::size_t segment) {
   const PointCloud& seg = s.segments[segment];
-  const Vec3d c = seg.origin + centroid(seg.points).cast<double>();
-  const PointCloud* best = nullptr;
-  double best_d = 0.5;  // [m] the merged object's centroid lies near the segment's
-  for (const PointCloud& o : s.drone_objects) {
-    if (o.empty()) continue;
-    const double d = (o.origin + centroid(o.points).cast<double>() - c).norm();
-    if (d < best_d) best_d = d, best = &o;
-  }
-  return best ? *best : seg;
+  const PointCloud* merged = nearest_cloud(s.drone_objects, seg.origin + centroid(seg.points).cast<double>(), kMergedNear);
+  return merged ? *merged : seg;
 }
 
 /// The largest segment on each stone, or -1.

@@ -52,6 +52,17 @@ int SurfaceTruth::stone_of(const PointCloud& c, const Eigen::Isometry3d& E, doub
   return best == votes.end() || 2 * *best < int(c.size()) ? -1 : int(best - votes.begin());
 }
 
+const PointCloud* nearest_cloud(const std::vector<PointCloud>& clouds, const Vec3d& c, double max_distance) {
+  const PointCloud* best = nullptr;
+  double best_d = max_distance;
+  for (const PointCloud& o : clouds) {
+    if (o.empty()) continue;
+    const double d = (o.origin + centroid(o.points).cast<double>() - c).norm();
+    if (d < best_d) best_d = d, best = &o;
+  }
+  return best;
+}
+
 ScanningMachine::ScanningMachine(const sim::SimulationConfig& config, std::uint64_t seed, double duration,
                                  const MappingConfig& mapping)
     : sim_(at_rest(config)), seed_(seed), world_(sim::make_world(sim_, seed)) {

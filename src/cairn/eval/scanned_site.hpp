@@ -36,6 +36,11 @@ struct SurfaceTruth {
                              double* share = nullptr) const;
 };
 
+/// The non-empty cloud whose centroid lies nearest `centroid` and within `max_distance`, or
+/// nullptr: the registration's merged object (LiDAR + drone) that holds a segment or object.
+[[nodiscard]] const PointCloud* nearest_cloud(const std::vector<PointCloud>& clouds, const Vec3d& centroid,
+                                              double max_distance);
+
 /// One settled world (settle_in_physics forced on), its state estimate over [0, duration] and the
 /// sweep schedule of both sensors, streamed into a Mapper on demand.
 class ScanningMachine {
