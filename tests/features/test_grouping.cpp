@@ -8,12 +8,13 @@
 #include "cairn/core/transform.hpp"
 #include "cairn/registration/consistency_grouping.hpp"
 #include "shapes.hpp"
+#include "cairn/core/units.hpp"
 
 using namespace cairn;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+using cairn::kDeg;
 
 struct Problem {
   std::vector<Vec3f> source, target;

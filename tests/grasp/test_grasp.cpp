@@ -13,12 +13,13 @@
 #include "cairn/core/io/io.hpp"
 #include "scenes.hpp"
 #include "support/test_data.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::grasp {
 namespace {
 
 using Eigen::Vector3d;
-constexpr double kDeg = std::numbers::pi / 180.0;
+using cairn::kDeg;
 
 std::vector<Vec3f> normals_within(const PointCloud& c, const Vec3f& p, double r) {
   std::vector<Vec3f> out;

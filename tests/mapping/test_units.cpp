@@ -12,11 +12,12 @@
 #include "cairn/mapping/scan_pair.hpp"
 #include "cairn/mapping/self_filter.hpp"
 #include "cairn/sim/excavator.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using cairn::kDeg;
 
 Eigen::Isometry3d pose(double yaw, const Eigen::Vector3d& t) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -16,6 +16,7 @@
 #include "cairn/objects/object_db.hpp"
 #include "cairn/objects/updates.hpp"
 #include "scene.hpp"
+#include "support/poses.hpp"
 
 namespace cairn {
 namespace {
@@ -47,11 +48,7 @@ Operation populate(const std::vector<PointCloud>& clouds, double time) {
   return op;
 }
 
-Eigen::Isometry3d pose(double x, double y, double z, double yaw) {
-  Eigen::Isometry3d T = pure_translation(x, y, z);
-  T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()));
-  return T;
-}
+using test::pose;
 
 TEST(ObjectDatabase, StoresObjectsHistoryAndMapEditsExactly) {
   const fs::path dir = fresh_dir("roundtrip");

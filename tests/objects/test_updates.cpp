@@ -12,17 +12,14 @@
 #include "cairn/objects/association.hpp"
 #include "cairn/objects/updates.hpp"
 #include "scene.hpp"
+#include "support/poses.hpp"
 
 namespace cairn {
 namespace {
 
 using Eigen::Isometry3d;
 
-Isometry3d pose(double x, double y, double z, double yaw, double roll = 0.0) {
-  Isometry3d T = pure_translation(x, y, z);
-  T.rotate(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()));
-  return T;
-}
+using test::pose;
 
 ObjectRecord record(std::int64_t id, PointCloud cloud, ObjectStatus status = ObjectStatus::on_ground) {
   ObjectRecord r;

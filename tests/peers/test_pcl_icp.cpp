@@ -12,15 +12,17 @@
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/registration/icp.hpp"
+#include "support/pcl_convert.hpp"
 #include "support/registration_scenes.hpp"
 #include "support/test_data.hpp"
 #include "support/threedmatch.hpp"
+#include "cairn/core/units.hpp"
 
 using namespace cairn;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+using cairn::kDeg;
 
 struct Problem {
   std::vector<Vec3f> source, target;
@@ -58,11 +60,7 @@ Problem outdoor_problem() {
   return p;
 }
 
-pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(std::span<const Vec3f> pts) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  for (const auto& p : pts) c->push_back({p.x(), p.y(), p.z()});
-  return c;
-}
+using test::to_pcl;
 
 pcl::PointCloud<pcl::PointNormal>::Ptr to_pcl(std::span<const Vec3f> pts, std::span<const Vec3f> normals) {
   auto c = pcl::make_shared<pcl::PointCloud<pcl::PointNormal>>();

@@ -19,18 +19,14 @@
 #include "cairn/core/plane.hpp"
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/segmentation/clustering.hpp"
+#include "support/pcl_convert.hpp"
 #include "support/test_data.hpp"
 
 using namespace cairn;
 
 namespace {
 
-pcl::PointCloud<pcl::PointXYZ>::Ptr to_pcl(std::span<const Vec3f> pts) {
-  auto c = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  c->reserve(pts.size());
-  for (const auto& p : pts) c->push_back({p.x(), p.y(), p.z()});
-  return c;
-}
+using test::to_pcl;
 
 /// Real LiDAR scan (KITTI, 64 beams) cropped to a 40 m box around the sensor.
 std::vector<Vec3f> kitti_crop() {

@@ -14,13 +14,14 @@
 #include "cairn/registration/icp.hpp"
 #include "support/registration_scenes.hpp"
 #include "support/test_data.hpp"
+#include "cairn/core/units.hpp"
 
 using namespace cairn;
 namespace o3r = open3d::pipelines::registration;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+using cairn::kDeg;
 
 open3d::geometry::PointCloud to_o3d(std::span<const Vec3f> pts, std::span<const Vec3f> normals = {}) {
   open3d::geometry::PointCloud c;

@@ -8,6 +8,7 @@
 #include "cairn/core/error.hpp"
 #include "cairn/registration/icp.hpp"
 #include "support/registration_scenes.hpp"
+#include "cairn/core/units.hpp"
 
 using namespace cairn;
 using test::make_pose;
@@ -15,7 +16,7 @@ using test::pose_error;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+using cairn::kDeg;
 
 /// Target: dense map of the site; source: an independent LiDAR-like sample seen from the origin,
 /// expressed in the source frame (T_target_source = T_gt).

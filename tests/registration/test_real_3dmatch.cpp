@@ -7,12 +7,13 @@
 
 #include "cairn/registration/global_registration.hpp"
 #include "support/threedmatch.hpp"
+#include "cairn/core/units.hpp"
 
 using namespace cairn;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+using cairn::kDeg;
 
 /// Table 3's radii are for stones in 3 cm maps; an indoor fragment needs wider SHOT support to
 /// be distinctive: at R_shot = 0.1 m only 5 of ~450 matches are right (within 10 cm), at 0.2 m

@@ -9,12 +9,13 @@
 #include "cairn/registration/icp.hpp"
 #include "support/registration_scenes.hpp"
 #include "support/test_data.hpp"
+#include "cairn/core/units.hpp"
 
 using namespace cairn;
 
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+using cairn::kDeg;
 
 Eigen::Isometry3d read_matrix(const std::filesystem::path& path) {
   std::ifstream in(path);

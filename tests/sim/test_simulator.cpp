@@ -16,13 +16,14 @@
 #include "cairn/sim/world.hpp"
 #include "support/mesh_distance.hpp"
 #include "support/test_data.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::sim {
 namespace {
 
 namespace fs = std::filesystem;
 using Eigen::Vector3d;
-constexpr double kDeg = std::numbers::pi / 180.0;
+using cairn::kDeg;
 
 io::Mesh quad(double half, double z) {
   io::Mesh m;

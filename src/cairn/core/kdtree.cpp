@@ -5,7 +5,9 @@
 #include <numeric>
 
 namespace cairn {
-namespace {
+// Named (not anonymous): KdTree::Impl holds these, and GCC warns (-Wsubobject-linkage) when a
+// class with external linkage has members of internal types once the file is in a unity batch.
+namespace kdtree_detail {
 
 struct SpanAdaptor {
   std::span<const Vec3f> pts;
@@ -39,11 +41,11 @@ struct CallbackResultSet {
   [[nodiscard]] float worstDist() const { return radius_sq; }
 };
 
-}  // namespace
+}  // namespace kdtree_detail
 
 struct KdTree::Impl {
-  SpanAdaptor adaptor;
-  Index index;
+  kdtree_detail::SpanAdaptor adaptor;
+  kdtree_detail::Index index;
   Impl(std::span<const Vec3f> p, int leaf)
       // nanoflann's constructor builds the index (a second buildIndex() would build it twice).
       : adaptor{p}, index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf))) {}
@@ -68,7 +70,7 @@ void KdTree::knn(const Vec3f& query, std::size_t k, Neighbors& out) const {
 void KdTree::radius_visit(const Vec3f& query, float radius, void* ctx,
                           void (*visit)(void*, std::uint32_t, float)) const {
   if (points_.empty()) return;
-  CallbackResultSet rs{radius * radius, ctx, visit};
+  kdtree_detail::CallbackResultSet rs{radius * radius, ctx, visit};
   impl_->index.findNeighbors(rs, query.data(), nanoflann::SearchParams(0, 0.0f, false));
 }
 

@@ -16,14 +16,13 @@
 #include "cairn/sim/drone.hpp"
 #include "cairn/mapping/map_edit.hpp"
 #include "cairn/sim/world.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::eval {
 namespace {
 
 using Eigen::Isometry3d;
 using Vec2d = Eigen::Vector2d;
-constexpr double kDeg = 180.0 / std::numbers::pi;
-constexpr double kMergedNear = 0.5;  // [m] a merged object's centroid lies this near the object's
 
 /// Horizontal bounding box of a cloud (world coordinates).
 Eigen::AlignedBox2d xy_bounds(const PointCloud& c) {
@@ -208,7 +207,7 @@ void Experiment::populate() {
 
 std::vector<Vec2d> Experiment::row(int round) const {
   const ScanningMachine& m = tracker_.machine();
-  const double heading = m.config().excavator.base_yaw_deg / kDeg;
+  const double heading = m.config().excavator.base_yaw_deg / kDegPerRad;
   const double d = round % 2 == 1 ? c_.row_distance : c_.row_distance_even;
   const int n = int(tracker_.machine().world().site.stones.size());
   // The row's places from its middle outwards: n targets, then as many spares.

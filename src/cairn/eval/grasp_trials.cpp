@@ -23,7 +23,6 @@ namespace {
 
 using Eigen::Isometry3d;
 constexpr double kTruthSpacing = 0.04;  // [m] sampling of the true surfaces
-constexpr double kMergedNear = 0.5;     // [m] a merged object's centroid lies this near its segment's
 
 /// What the machine knows about one site after scanning it.
 struct SensedSite {

@@ -36,6 +36,10 @@ struct SurfaceTruth {
                              double* share = nullptr) const;
 };
 
+/// [m] A merged object's centroid lies this near the segment or object it grew from (the drone
+/// adds the top and far side the LiDARs did not see, shifting the centroid by decimetres).
+inline constexpr double kMergedNear = 0.5;
+
 /// The non-empty cloud whose centroid lies nearest `centroid` and within `max_distance`, or
 /// nullptr: the registration's merged object (LiDAR + drone) that holds a segment or object.
 [[nodiscard]] const PointCloud* nearest_cloud(const std::vector<PointCloud>& clouds, const Vec3d& centroid,

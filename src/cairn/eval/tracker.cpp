@@ -13,12 +13,12 @@
 #include "cairn/core/transform.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/objects/pipeline.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::eval {
 namespace {
 
 using Eigen::Isometry3d;
-constexpr double kDeg = 180.0 / std::numbers::pi;
 
 Isometry3d yaw_pose(const Vec3d& p, double yaw) {
   Isometry3d T = pure_translation(p.x(), p.y(), p.z());
@@ -140,13 +140,13 @@ RemovalCounts Tracker::removal(const PointCloud& map, const MapEdit& edit, const
 }
 
 void Tracker::plan_slots() {
-  const double heading = cfg_.simulation.excavator.base_yaw_deg / kDeg;
+  const double heading = cfg_.simulation.excavator.base_yaw_deg / kDegPerRad;
   std::vector<std::pair<double, Vec3d>> outer, inner;
   const double s = cfg_.slot_spacing;
   for (double x = -cfg_.slot_max_distance; x <= cfg_.slot_max_distance; x += s)
     for (double y = -cfg_.slot_max_distance; y <= cfg_.slot_max_distance; y += s) {
       const Eigen::Vector2d xy = machine_.base().head<2>() + Eigen::Rotation2Dd(heading) * Eigen::Vector2d(x, y);
-      const double d = Eigen::Vector2d(x, y).norm(), angle = std::abs(std::atan2(y, x)) * kDeg;
+      const double d = Eigen::Vector2d(x, y).norm(), angle = std::abs(std::atan2(y, x)) * kDegPerRad;
       if (d < cfg_.slot_min_distance || d > cfg_.slot_max_distance || angle > cfg_.slot_max_angle_deg) continue;
       const Vec3d p(xy.x(), xy.y(), machine_.world().site.terrain.height(xy.x(), xy.y()));
       (d >= cfg_.slot_split_distance ? outer : inner)
@@ -181,7 +181,7 @@ void Tracker::score(MoveRecord& m, const Tracked& tr, const Isometry3d& E, bool 
   const Isometry3d A = db_motion(db_->history(tr.object));
   const Isometry3d A_true = E.inverse() * tr.M * tr.E0;  // the truth's motion in the map frame
   const double e_m = (A * tr.created_centroid - A_true * tr.created_centroid).norm();
-  const double e_deg = rotation_angle(A.linear().transpose() * A_true.linear()) * kDeg;
+  const double e_deg = rotation_angle(A.linear().transpose() * A_true.linear()) * kDegPerRad;
   (predicted ? m.predicted_error_m : m.error_m) = e_m;
   (predicted ? m.predicted_error_deg : m.error_deg) = e_deg;
 }
@@ -262,7 +262,7 @@ bool Tracker::move(int round, Tracked& tr) {
   const sim::Terrain& ground = machine_.world().site.terrain;
   const Eigen::Quaterniond tilt = Eigen::Quaterniond::FromTwoVectors(ground.normal(obj.centroid.x(), obj.centroid.y()),
                                                                      ground.normal(slot.x(), slot.y()));
-  Isometry3d T_MG_release = yaw_pose(Vec3d(slot.x(), slot.y(), obj.centroid.z()), cfg_.turn_deg / kDeg);
+  Isometry3d T_MG_release = yaw_pose(Vec3d(slot.x(), slot.y(), obj.centroid.z()), cfg_.turn_deg / kDegPerRad);
   T_MG_release.linear() = tilt.toRotationMatrix() * T_MG_release.linear();
   const Isometry3d commanded = machine_.E_state(t_release) * T_MG_release * T_MG_grasp.inverse() * machine_.E_state(machine_.now()).inverse();
   const sim::CarryResult carry = sim::carry_and_release(machine_.world(), std::size_t(tr.stone), commanded, cfg_.drop_height, machine_.config());
@@ -272,9 +272,9 @@ bool Tracker::move(int round, Tracked& tr) {
   const Isometry3d settle = carry.total * carry.carried.inverse();
   const Vec3d c_now = machine_.world().site.stones[std::size_t(tr.stone)].centroid;  // after the settling
   m.settle_m = (c_now - settle.inverse() * c_now).norm();
-  m.settle_deg = rotation_angle(settle.linear()) * kDeg;
+  m.settle_deg = rotation_angle(settle.linear()) * kDegPerRad;
   m.moved_m = (c_now - carry.total.inverse() * c_now).norm();
-  m.turned_deg = rotation_angle(carry.total.linear()) * kDeg;
+  m.turned_deg = rotation_angle(carry.total.linear()) * kDegPerRad;
   spdlog::debug("objects track: stone {} to slot ({:.2f}, {:.2f}): lift {:.3f} m, settled {} by {:.3f} m {:.1f} deg",
                 tr.stone, slot.x(), slot.y(), carry.lift, carry.settled, m.settle_m, m.settle_deg);
   // Release (Eq. 3): the arm lowered the stone by `lift` until it touched the ground.

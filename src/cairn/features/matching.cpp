@@ -69,8 +69,6 @@ std::vector<Nearest> nearest_kdtree(const ShotDescriptors& from, const ShotDescr
 
 // --- Scan with lower bounds --------------------------------------------------------------------
 
-constexpr int kVolumes = 32;                    // SHOT spatial volumes
-constexpr int kBinsPerVolume = kShotSize / kVolumes;  // 11 cosine bins each
 constexpr int kLanes = 8;                       // target descriptors per block of the bound scan
 using Lanes = Eigen::Array<float, kLanes, 1>;
 
@@ -78,10 +76,10 @@ using Lanes = Eigen::Array<float, kLanes, 1>;
 /// inequality per volume, Σ_g (‖q_g‖ − ‖t_g‖)² ≤ Σ_g ‖q_g − t_g‖² = |q − t|²: a 32-dimensional
 /// lower bound of the squared descriptor distance.
 void volume_norms(std::span<const float> d, float* out) {
-  for (int g = 0; g < kVolumes; ++g) {
+  for (int g = 0; g < kShotVolumes; ++g) {
     float s = 0.0f;
-    for (int b = 0; b < kBinsPerVolume; ++b) {
-      const float v = d[std::size_t(g * kBinsPerVolume + b)];
+    for (int b = 0; b < kShotBinsPerVolume; ++b) {
+      const float v = d[std::size_t(g * kShotBinsPerVolume + b)];
       s += v * v;
     }
     out[g] = std::sqrt(s);
@@ -89,7 +87,7 @@ void volume_norms(std::span<const float> d, float* out) {
 }
 
 /// Volume norms of the valid `to` descriptors in blocks of kLanes, volume-major inside a block:
-/// block b, volume g, lane l at norms[(b * kVolumes + g) * kLanes + l]; far values pad the last block.
+/// block b, volume g, lane l at norms[(b * kShotVolumes + g) * kLanes + l]; far values pad the last block.
 struct BoundIndex {
   const ShotDescriptors* set = nullptr;
   std::vector<float> norms;
@@ -103,12 +101,12 @@ BoundIndex make_bound_index(const ShotDescriptors& to) {
   for (std::size_t i = 0; i < to.size(); ++i)
     if (to.valid[i]) x.rows.push_back(std::uint32_t(i));
   x.blocks = (x.rows.size() + kLanes - 1) / kLanes;
-  x.norms.assign(x.blocks * kVolumes * kLanes, 1e15f);
-  float g[kVolumes];
+  x.norms.assign(x.blocks * kShotVolumes * kLanes, 1e15f);
+  float g[kShotVolumes];
   for (std::size_t r = 0; r < x.rows.size(); ++r) {
     volume_norms(to.descriptor(x.rows[r]), g);
-    float* dst = x.norms.data() + (r / kLanes) * kVolumes * kLanes + r % kLanes;
-    for (int v = 0; v < kVolumes; ++v) dst[std::size_t(v) * kLanes] = g[v];
+    float* dst = x.norms.data() + (r / kLanes) * kShotVolumes * kLanes + r % kLanes;
+    for (int v = 0; v < kShotVolumes; ++v) dst[std::size_t(v) * kLanes] = g[v];
   }
   return x;
 }
@@ -125,14 +123,14 @@ struct Candidate {
 
 /// Exact nearest neighbour of `q` (lowest index on ties) when it is closer than `limit`.
 Nearest nearest_scan(std::span<const float> q, const BoundIndex& x, float limit, std::vector<Candidate>& cand) {
-  float gq[kVolumes];
+  float gq[kShotVolumes];
   volume_norms(q, gq);
   cand.clear();
   const float keep = with_margin(limit);
   for (std::size_t blk = 0; blk < x.blocks; ++blk) {
-    const float* t = x.norms.data() + blk * kVolumes * kLanes;
+    const float* t = x.norms.data() + blk * kShotVolumes * kLanes;
     Lanes lb = Lanes::Zero();
-    for (int g = 0; g < kVolumes; ++g) lb += (gq[g] - Eigen::Map<const Lanes>(t + std::size_t(g) * kLanes)).square();
+    for (int g = 0; g < kShotVolumes; ++g) lb += (gq[g] - Eigen::Map<const Lanes>(t + std::size_t(g) * kLanes)).square();
     if ((lb >= keep).all()) continue;
     for (int l = 0; l < kLanes; ++l) {
       const std::size_t r = blk * kLanes + std::size_t(l);
@@ -147,12 +145,12 @@ Nearest nearest_scan(std::span<const float> q, const BoundIndex& x, float limit,
     // remaining volumes exceeds the best distance so far (or the limit).
     const std::uint32_t index = x.rows[c.row];
     const std::span<const float> t = x.set->descriptor(index);
-    const float* tn = x.norms.data() + (c.row / kLanes) * kVolumes * kLanes + c.row % kLanes;
+    const float* tn = x.norms.data() + (c.row / kLanes) * kShotVolumes * kLanes + c.row % kLanes;
     const float bound = with_margin(std::min(best.squared_distance, limit));
     float d = 0.0f, rest = c.bound;
     bool abandoned = false;
-    for (int g = 0; g < kVolumes && !abandoned; ++g) {
-      for (int b = g * kBinsPerVolume; b < (g + 1) * kBinsPerVolume; ++b) {
+    for (int g = 0; g < kShotVolumes && !abandoned; ++g) {
+      for (int b = g * kShotBinsPerVolume; b < (g + 1) * kShotBinsPerVolume; ++b) {
         const float diff = q[std::size_t(b)] - t[std::size_t(b)];
         d += diff * diff;
       }

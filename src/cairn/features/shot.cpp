@@ -30,8 +30,8 @@ std::size_t ShotDescriptors::num_valid() const {
 namespace {
 
 constexpr int kShapeBins = 10;         // cosine bins per spatial volume (PCL nr_shape_bins_)
-constexpr int kBinsPerVolume = kShapeBins + 1;
-constexpr int kAngularSectors = 32;    // spatial volumes (PCL maxAngularSectors_)
+static_assert(kShapeBins + 1 == kShotBinsPerVolume);
+constexpr int kAngularSectors = kShotVolumes;
 constexpr double kRad45 = 0.78539816339744830961566084581988;
 constexpr double kRad90 = 1.5707963267948966192313216916398;
 constexpr double kRad135 = 2.3561944901923449288469825374596;
@@ -161,7 +161,7 @@ bool shot_histogram(const Vec3f& center, const Eigen::Matrix3f& rf, std::span<co
     desc_index += (distance > radius1_2) ? 2 : 0;
 
     const int step_index = static_cast<int>(std::floor(bin_distance[i] + 0.5));
-    const int volume_index = desc_index * kBinsPerVolume;
+    const int volume_index = desc_index * kShotBinsPerVolume;
 
     // Interpolation on the cosine (adjacent bins of the histogram).
     const double bin_offset = bin_distance[i] - step_index;
@@ -178,7 +178,7 @@ bool shot_histogram(const Vec3f& center, const Eigen::Matrix3f& rf, std::span<co
         weight += 1 - radius_distance;
       } else {
         weight += 1 + radius_distance;
-        shot[(desc_index - 2) * kBinsPerVolume + step_index] -= static_cast<float>(radius_distance);
+        shot[(desc_index - 2) * kShotBinsPerVolume + step_index] -= static_cast<float>(radius_distance);
       }
     } else {
       const double radius_distance = (distance - radius1_4) / radius1_2;
@@ -186,7 +186,7 @@ bool shot_histogram(const Vec3f& center, const Eigen::Matrix3f& rf, std::span<co
         weight += 1 + radius_distance;
       } else {
         weight += 1 - radius_distance;
-        shot[(desc_index + 2) * kBinsPerVolume + step_index] += static_cast<float>(radius_distance);
+        shot[(desc_index + 2) * kShotBinsPerVolume + step_index] += static_cast<float>(radius_distance);
       }
     }
 
@@ -198,7 +198,7 @@ bool shot_histogram(const Vec3f& center, const Eigen::Matrix3f& rf, std::span<co
         weight += 1 - inclination_distance;
       } else {
         weight += 1 + inclination_distance;
-        shot[(desc_index + 1) * kBinsPerVolume + step_index] -= static_cast<float>(inclination_distance);
+        shot[(desc_index + 1) * kShotBinsPerVolume + step_index] -= static_cast<float>(inclination_distance);
       }
     } else {
       const double inclination_distance = (inclination - kRad45) / kRad90;
@@ -206,7 +206,7 @@ bool shot_histogram(const Vec3f& center, const Eigen::Matrix3f& rf, std::span<co
         weight += 1 + inclination_distance;
       } else {
         weight += 1 - inclination_distance;
-        shot[(desc_index - 1) * kBinsPerVolume + step_index] += static_cast<float>(inclination_distance);
+        shot[(desc_index - 1) * kShotBinsPerVolume + step_index] += static_cast<float>(inclination_distance);
       }
     }
 
@@ -219,11 +219,11 @@ bool shot_histogram(const Vec3f& center, const Eigen::Matrix3f& rf, std::span<co
       if (azimuth_distance > 0) {
         weight += 1 - azimuth_distance;
         const int interp = (desc_index + 4) % kAngularSectors;
-        shot[interp * kBinsPerVolume + step_index] += static_cast<float>(azimuth_distance);
+        shot[interp * kShotBinsPerVolume + step_index] += static_cast<float>(azimuth_distance);
       } else {
         const int interp = (desc_index - 4 + kAngularSectors) % kAngularSectors;
         weight += 1 + azimuth_distance;
-        shot[interp * kBinsPerVolume + step_index] -= static_cast<float>(azimuth_distance);
+        shot[interp * kShotBinsPerVolume + step_index] -= static_cast<float>(azimuth_distance);
       }
     }
     shot[volume_index + step_index] += static_cast<float>(weight);

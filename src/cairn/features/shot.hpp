@@ -23,6 +23,8 @@
 namespace cairn {
 
 inline constexpr int kShotSize = 352;
+inline constexpr int kShotVolumes = 32;                           // spatial volumes (PCL maxAngularSectors_)
+inline constexpr int kShotBinsPerVolume = kShotSize / kShotVolumes;  // 11 cosine bins each (PCL nr_shape_bins_ + 1)
 
 struct ShotConfig {
   double radius = 0.10;  // R_shot [m], Table 3 (also the local-reference-frame radius, as PCL's default)

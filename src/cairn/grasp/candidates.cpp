@@ -12,6 +12,7 @@
 
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/voxel_grid.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::grasp {
 namespace {
@@ -19,7 +20,6 @@ namespace {
 using Eigen::Isometry3d;
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
-constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 Matrix3d axis_rotation(const Vector3d& axis, double deg) { return Eigen::AngleAxisd(deg * kDeg, axis).toRotationMatrix(); }

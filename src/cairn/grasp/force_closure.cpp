@@ -4,13 +4,13 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include "cairn/core/units.hpp"
 
 namespace cairn::grasp {
 namespace {
 
 using Eigen::Isometry3d;
 using Eigen::Vector3d;
-constexpr double kDeg = std::numbers::pi / 180.0;
 
 double angle_between(const Vector3d& a, const Vector3d& b) { return std::acos(std::clamp(a.dot(b), -1.0, 1.0)); }
 

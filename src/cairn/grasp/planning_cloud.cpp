@@ -11,11 +11,11 @@
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::grasp {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr unsigned kGroundSeed = 1;  // RANSAC of the ground plane (deterministic planning)
 
 struct CropRegion {

@@ -13,11 +13,11 @@
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/registration/icp.hpp"
 #include "cairn/mapping/self_filter.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
 
 std::vector<Vec3f> downsample(std::span<const Vec3f> points, double leaf) {
   PointCloud c;

@@ -13,6 +13,7 @@
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/transform.hpp"
 #include "cairn/registration/icp.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn {
 namespace {
@@ -48,7 +49,6 @@ struct Entity {  // an object or a segment in the working frame
   }
 };
 
-constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
 /// The starting rotations: yaw_seeds about the vertical, with all_faces for each of the six faces
 /// of a box turned down (a stone that fell or rolled).

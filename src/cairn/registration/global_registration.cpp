@@ -13,15 +13,15 @@
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/plane.hpp"
 #include "cairn/core/transform.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn {
 namespace {
 
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 constexpr std::uint64_t kLevellingSeed = 7;  // the levelling RANSAC is deterministic
 // Two coarse candidates closer than this are one alignment (ICP's basin is wider).
 constexpr double kSameCandidateDistance = 0.2;               // [m]
-constexpr double kSameCandidateAngle = 2.0 * kDegToRad;      // [rad]
+constexpr double kSameCandidateAngle = 2.0 * kDeg;      // [rad]
 
 /// The object segments of one cloud, in the cloud's local coordinates (levelled for the source).
 struct SegmentSet {
@@ -98,12 +98,12 @@ Overlap mutual_overlap(std::span<const Vec3f> source, std::span<const Vec3f> tar
   // Fixed chunks summed in order: the same result on any number of threads.
   const auto sum_within = [distance](std::span<const Vec3f> q, const KdTree& tree) {
     if (tree.size() == 0) return std::pair{0.0, std::size_t{0}};
-    constexpr std::size_t kChunk = 1024;
-    const std::size_t chunks = (q.size() + kChunk - 1) / kChunk;
+    constexpr std::size_t kQueryChunk = 1024;
+    const std::size_t chunks = (q.size() + kQueryChunk - 1) / kQueryChunk;
     std::vector<double> sq(chunks, 0.0);
     std::vector<std::size_t> n(chunks, 0);
     tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
-      for (std::size_t i = c * kChunk; i < std::min(q.size(), (c + 1) * kChunk); ++i) {
+      for (std::size_t i = c * kQueryChunk; i < std::min(q.size(), (c + 1) * kQueryChunk); ++i) {
         float d2 = 0.0f;
         (void)tree.nearest(q[i], &d2);
         if (double(d2) < distance * distance) {
@@ -169,7 +169,7 @@ std::vector<std::pair<Eigen::Isometry3d, Verification>> centroid_candidates(cons
   for (auto& c : out) {
     const bool dup = std::any_of(distinct.begin(), distinct.end(), [&](const auto& d) {
       return (d.first.translation() - c.first.translation()).norm() < 0.5 * cfg.d_match &&
-             rotation_angle(d.first.linear().transpose() * c.first.linear()) < 5.0 * kDegToRad;
+             rotation_angle(d.first.linear().transpose() * c.first.linear()) < 5.0 * kDeg;
     });
     if (!dup) distinct.push_back(std::move(c));
     if (int(distinct.size()) >= cfg.max_centroid_candidates) break;
@@ -201,7 +201,7 @@ std::vector<TransformCandidate> descriptor_candidates(SegmentSet& src, SegmentSe
   for (std::uint32_t i : tgt.keypoints) tgt_kp.push_back(tgt.points[i]);
   std::vector<TransformCandidate> candidates = geometric_consistency_grouping(src_kp, tgt_kp, matches, cfg.grouping);
   if (cfg.gravity_aligned)
-    std::erase_if(candidates, [&](const TransformCandidate& c) { return tilt(c.T_target_source) > cfg.max_tilt_deg * kDegToRad; });
+    std::erase_if(candidates, [&](const TransformCandidate& c) { return tilt(c.T_target_source) > cfg.max_tilt_deg * kDeg; });
   r.candidates = candidates.size();  // descriptor candidates (the paper's b)
   return candidates;
 }
@@ -395,7 +395,7 @@ void GlobalRegistrationConfig::validate() const {
 
 RegistrationError registration_error(const Similarity& estimate, const Similarity& truth, const Vec3d& at) {
   const Similarity E = estimate * truth.inverse();
-  return {.rotation_deg = rotation_angle(E.rotation) / kDegToRad,
+  return {.rotation_deg = rotation_angle(E.rotation) / kDeg,
           .translation_m = (E * at - at).norm(),
           .scale_ratio = estimate.scale / truth.scale};
 }

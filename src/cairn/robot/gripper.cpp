@@ -5,11 +5,11 @@
 #include <numbers>
 
 #include "cairn/core/error.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
 
 ConvexPart box_part(std::string name, const Eigen::Vector3d& center, const Eigen::Vector3d& half,
                     const Eigen::Isometry3d& T = Eigen::Isometry3d::Identity()) {

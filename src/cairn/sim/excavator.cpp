@@ -4,11 +4,11 @@
 #include <numbers>
 
 #include "cairn/core/transform.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::sim {
 
 namespace {
-constexpr double kDeg = std::numbers::pi / 180.0;
 
 }  // namespace
 

@@ -8,11 +8,11 @@
 
 #include "cairn/core/error.hpp"
 #include "cairn/sim/world.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::sim {
 
 namespace {
-constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr int kLasers = 16;
 
 }  // namespace

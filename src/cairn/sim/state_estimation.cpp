@@ -7,11 +7,11 @@
 
 #include "cairn/core/error.hpp"
 #include "cairn/sim/lidar.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::sim {
 
 namespace {
-constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kMaxSamples = 1e8;
 
 void validate(const StateEstimationConfig& c, double t0, double t1) {

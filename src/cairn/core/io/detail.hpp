@@ -15,6 +15,8 @@ namespace detail {
 
 using std::filesystem::path;
 
+inline constexpr std::size_t kMaxQuotedLine = 60;  // longest header line quoted in an error message
+
 inline constexpr bool kHostLittleEndian = std::endian::native == std::endian::little;
 
 /// A cloud as decoded from a file, before the common post-processing of read_cloud

@@ -16,7 +16,6 @@ using detail::fail;
 using detail::Scalar;
 using std::filesystem::path;
 
-constexpr std::size_t kMaxQuotedLine = 60;  // longest header line quoted in an error message
 constexpr std::size_t kSizeBytes = 4;       // binary_compressed: uint32 sizes before the block
 constexpr std::size_t kSizePrefix = 2 * kSizeBytes;
 constexpr int kRedShift = 16;
@@ -266,7 +265,7 @@ Header parse_header(std::string_view bytes, const path& file) {
       break;
     } else if (key != "VERSION" && key != "VIEWPOINT") {
       fail(file, "not a PCD file (unexpected header line '" +
-                     std::string(line.substr(0, kMaxQuotedLine)) + "')");
+                     std::string(line.substr(0, detail::kMaxQuotedLine)) + "')");
     }
   }
   h.data_offset = pos;
@@ -353,7 +352,7 @@ double ascii_value(std::string_view token, const Field& f, std::size_t line, con
   double v = 0;
   if (!detail::parse_number(token, v))
     fail(file, "line " + std::to_string(line) + ": '" +
-                   std::string(token.substr(0, kMaxQuotedLine)) + "' is not a number");
+                   std::string(token.substr(0, detail::kMaxQuotedLine)) + "' is not a number");
   if (!f.packed_color()) return v;
   if (f.kind == 'F' && !is_digits(token))
     return std::bit_cast<std::uint32_t>(static_cast<float>(v));

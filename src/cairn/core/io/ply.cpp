@@ -20,7 +20,6 @@ constexpr std::string_view kMagic = "ply";
 constexpr std::string_view kEndHeader = "end_header";
 constexpr std::size_t kMaxListLength = 1u << 20;  // longer lists mean a corrupt file
 constexpr std::uint8_t kTriangleCorners = 3;
-constexpr std::size_t kMaxQuotedLine = 60;  // longest header line quoted in an error message
 
 struct TypeName {
   std::string_view name;
@@ -115,7 +114,7 @@ void parse_header_line(std::string_view line, Header& h, const path& file) {
   } else if (w[0] == "property" && !h.elements.empty()) {
     h.elements.back().props.push_back(parse_property(w, file));
   } else {
-    fail(file, "unexpected PLY header line '" + std::string(line.substr(0, kMaxQuotedLine)) + "'");
+    fail(file, "unexpected PLY header line '" + std::string(line.substr(0, detail::kMaxQuotedLine)) + "'");
   }
 }
 

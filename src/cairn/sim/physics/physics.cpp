@@ -14,6 +14,7 @@
 #include "cairn/core/error.hpp"
 #include "cairn/robot/grasp_plan.hpp"
 #include "cairn/sim/physics/scene.hpp"
+#include "cairn/core/units.hpp"
 
 namespace cairn::sim {
 namespace {
@@ -31,7 +32,6 @@ constexpr double kJawStopHold = 0.05;       // [s] jaws must stay stopped this l
 constexpr double kEmptyMargin = 0.01;       // [m] jaws this close to fully closed hold nothing
 constexpr double kContactWindow = 0.05;     // [s] a jaw touches what it touched this recently
 constexpr double kExtentAngleStep = 0.5;    // [deg] search step of the shortest extent
-constexpr double kDegree = std::numbers::pi / 180.0;  // [rad]
 constexpr int kJawFootprintSamples = 9;     // per axis, terrain samples under the jaws' sweep
 
 void require(bool ok, const std::string& message) {
@@ -754,14 +754,14 @@ IslandSettle settle_island(Site island, const PhysicsConfig& config, const std::
                                                  config.rest_hold, region);
     const bool still = largest_motion(island, again.stone_poses) < config.rest_speed * config.rest_hold;
     std::tie(out.restart_shift, out.restart_turn) = largest_shift_and_turn(island, again.stone_poses);
-    within = out.restart_shift <= config.restart_shift && out.restart_turn <= config.restart_turn_deg * kDegree;
+    within = out.restart_shift <= config.restart_shift && out.restart_turn <= config.restart_turn_deg * kDeg;
     apply_stone_poses(island, again.stone_poses);
     for (std::size_t k = 0; k < total.stone_poses.size(); ++k) total.stone_poses[k] = again.stone_poses[k] * total.stone_poses[k];
     total.sim_time += again.sim_time;
     total.wall_time += again.wall_time;
     total.settled = again.settled;
     spdlog::debug("settle: island of {} stones, restart {}: shift {:.1f} mm, turn {:.2f} deg", island.stones.size(),
-                  restart + 1, 1e3 * out.restart_shift, out.restart_turn / kDegree);
+                  restart + 1, 1e3 * out.restart_shift, out.restart_turn / kDeg);
     if (still) break;
   }
   total.settled = total.settled && within;
