@@ -1,20 +1,30 @@
 #!/usr/bin/env bash
-# Installs the Debian 12 packages cairn needs (apt only; no downloads during the build).
+# Installs what cairn needs on Debian 12: apt packages, and the report's web assets from the npm
+# registry (web/package-lock.json; inlined into the binary at build time). Nothing is downloaded
+# during the build itself.
+#   scripts/install_deps.sh           what the main job needs (scripts/setup.sh)
+#   scripts/install_deps.sh --tests   that, and what the tests and benchmarks need (scripts/test.sh)
 set -euo pipefail
+cd "$(dirname "$0")/.."
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # kernels: eigen nanoflann tbb; config/CLI/logging: yaml-cpp cli11 spdlog fmt nlohmann-json;
 # pictures: zlib; simulator: embree (ray casting), mujoco (grasp physics); mapping: ceres;
-# object database: sqlite3; tests and benchmarks: gtest gmock benchmark;
-# peers (tests/bench only, never linked by the library): pcl, open3d
+# object database: sqlite3; report: npm (three.js).
 PACKAGES=(
   build-essential cmake ninja-build pkg-config python3
   libeigen3-dev libnanoflann-dev libtbb-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev zlib1g-dev
   libembree-dev libmujoco-dev libceres-dev libsqlite3-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
-  libpcl-dev libopen3d-dev
 )
+# npm from Debian unless a node.js with npm is installed already (e.g. NodeSource's, which
+# conflicts with Debian's npm package).
+command -v npm >/dev/null || PACKAGES+=(npm)
+# tests and benchmarks: gtest gmock benchmark; the report opened in headless chromium;
+# peers (tests/bench only, never linked by the library): pcl, open3d
+if [ "${1:-}" = "--tests" ]; then
+  PACKAGES+=(libgtest-dev libgmock-dev libbenchmark-dev chromium libpcl-dev libopen3d-dev)
+fi
 export DEBIAN_FRONTEND=noninteractive
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -22,8 +32,18 @@ for p in "${PACKAGES[@]}"; do
 done
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install_deps: all ${#PACKAGES[@]} packages present"
-  exit 0
+else
+  echo "install_deps: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-echo "install_deps: installing ${missing[*]}"
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+# three.js, pinned by web/package-lock.json (the last release with a self-contained
+# build/three.module.min.js).
+installed_matches_lock() {
+  node -e "const lock = require('./web/package-lock.json').packages['node_modules/three'].version;
+           process.exit(lock === require('./web/node_modules/three/package.json').version ? 0 : 1)" 2>/dev/null
+}
+if ! installed_matches_lock; then
+  echo "install_deps: npm ci (web/)"
+  (cd web && npm ci --no-audit --no-fund --loglevel=error)
+fi
