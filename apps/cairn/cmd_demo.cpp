@@ -2,7 +2,8 @@
 // (eval/experiment.hpp): drone survey and scale, online LiDAR map, registration every 5 s until
 // accepted, segmentation and the object database, then every stone planned, grasped in the
 // physics, carried to its place in a row, released, rescanned and re-aligned (exp1 once, exp2
-// four rounds). Prints the summary JSON; writes it, the object database and a top view to --out.
+// four rounds). Prints the summary JSON; writes it, the object database and the HTML report
+// (report/report.hpp) with its figures to --out.
 #include <spdlog/spdlog.h>
 
 #include <fstream>
@@ -12,6 +13,7 @@
 #include "cairn/core/error.hpp"
 #include "cairn/core/image.hpp"
 #include "cairn/eval/experiment.hpp"
+#include "cairn/report/report.hpp"
 #include "cairn/segmentation/output.hpp"
 #include "commands.hpp"
 
@@ -61,6 +63,8 @@ int run_demo(const DemoArgs& a) {
   const nlohmann::json j = eval::to_json(r);
   std::ofstream(out / "summary.json") << j.dump(2) << "\n";
   std::cout << j.dump(2) << std::endl;
+  const report::ReportFiles files = report::write_report(out, r, {.target_tolerance = c.detection.target_tolerance});
+  spdlog::info("demo: report {} ({} figures beside it)", files.html.string(), files.figures.size());
   spdlog::info("demo: {} of {} moves placed within {} m of their targets; first-attempt success {}/{}, within {} "
                "attempts {}/{}; {} failed attempts, {} detected, {} false alarms; summary {}",
                r.placed, r.moves, c.detection.target_tolerance, r.first_attempt_success, r.moves, c.max_attempts,
@@ -77,7 +81,7 @@ void add_demo_command(CLI::App& app, std::function<int()>& run) {
       "demo", "The main job: the paper's experiments end to end on the simulated machine (Sec. 6): map, register "
               "the drone cloud, segment, fill the object database, then plan, grasp, carry, place, rescan and "
               "re-align every stone (exp1: once; exp2: four rounds)");
-  cmd->add_option("--out", args->out, "output directory (summary.json, objects.db)")->capture_default_str();
+  cmd->add_option("--out", args->out, "output directory (summary.json, objects.db, report.html, fig_*)")->capture_default_str();
   cmd->add_option("--scenario", args->scenario, "experiment: exp1 or exp2")->capture_default_str();
   cmd->add_option("--seed", args->seed, "site seed (same seed, same site and sensor data)")->capture_default_str();
   cmd->add_flag("--overwrite", args->overwrite, "replace the object database of an earlier run in --out");

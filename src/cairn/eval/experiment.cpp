@@ -17,12 +17,21 @@
 #include "cairn/mapping/map_edit.hpp"
 #include "cairn/sim/world.hpp"
 #include "cairn/core/units.hpp"
+#include "cairn/core/voxel_grid.hpp"
 
 namespace cairn::eval {
 namespace {
 
 using Eigen::Isometry3d;
 using Vec2d = Eigen::Vector2d;
+
+/// The cloud thinned to `voxel` (the report's scene): positions only.
+PointCloud thin(const PointCloud& c, double voxel) {
+  PointCloud p;
+  p.points = c.points;
+  p.origin = c.origin;
+  return p.empty() ? p : voxel_downsample(p, {.res_voxel = voxel, .n_min = 1});
+}
 
 /// Horizontal bounding box of a cloud (world coordinates).
 Eigen::AlignedBox2d xy_bounds(const PointCloud& c) {
@@ -44,6 +53,7 @@ void validate(const ExperimentConfig& c) {
     throw ConfigError("experiment detection: min_load >= 0, load_drop in (0, 1), positive jaw_travel and target_tolerance");
   if (!(c.place_support > 0 && c.place_support <= 1)) throw ConfigError("experiment: place_support must lie in (0, 1]");
   if (c.inject_friction < 0) throw ConfigError("experiment: inject_friction must be >= 0");
+  if (!(c.scene_voxel > 0)) throw ConfigError("experiment: scene_voxel must be > 0");
   c.grasp.validate();
 }
 
@@ -126,6 +136,8 @@ class Experiment {
   [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
   bool attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target);
   void score_round(int round, const RoundRecord& rr);
+  void capture(const std::string& label, int round, int move);
+  void capture_trajectory();
   void progress(const std::string& what, int done, int total) const {
     if (progress_) progress_(what, done, total);
   }
@@ -183,6 +195,8 @@ void Experiment::register_while_scanning() {
     reg.translation_error_m = e.translation_m;
     reg.timings = r.timings;
     transform_cloud(cloud, r.T_target_source);
+    out.scene.drone_points = cloud.size();
+    out.scene.drone = thin(cloud, c_.scene_voxel);
     drone_ = std::move(cloud);
     for (const auto& o : r.objects) merged_.push_back(o.cloud);
     break;
@@ -199,6 +213,9 @@ void Experiment::register_while_scanning() {
 void Experiment::populate() {
   Stopwatch sw;
   tracker_.populate();
+  out.scene.gripper = tracker_.machine().config().gripper;
+  out.scene.voxel = c_.scene_voxel;
+  capture("before moving", 0, 0);
   out.stones_tracked = tracker_.result.stones_tracked;
   for (const std::string& u : tracker_.result.unmatched) out.notes.push_back(u);
   moved_.assign(std::size_t(out.stones), false);
@@ -311,7 +328,9 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   }
   const grasp::Grasp& best = p.grasps.front();
   g.costs = best.costs;
+  g.normalized_costs = grasp::normalized_costs(p);
   g.T_map_gripper = best.T_map_gripper;
+  g.opening = best.opening;
   MoveRecord mv{.round = round, .stone = tr.stone, .object = tr.object, .purity = tr.purity, .time = m.now()};
   const Operation grasp_op = tracker_.commit_grasp(mv, tr, best.T_map_gripper, map, *before, E);
   if (drone_) cut(*drone_, grasp_op.map_edits);
@@ -412,6 +431,10 @@ void Experiment::run_round(int round) {
       if (attempt(round, a, tr, *target)) break;
     }
     moved_[std::size_t(tr.stone)] = true;
+    const int move = int(i) + 1;
+    const auto& after = c_.scene_after_moves;
+    if (round == 1 && move < int(idx.size()) && std::find(after.begin(), after.end(), move) != after.end())
+      capture("round 1, after move " + std::to_string(move), round, move);
   }
   RoundRecord rr{.round = round};
   tracker_.resegment(rr);
@@ -440,9 +463,39 @@ void Experiment::score_round(int round, const RoundRecord& rr) {
   for (const ObjectRecord& o : tracker_.db().objects(false)) er.lost += o.status == ObjectStatus::lost;
   er.duplicated = int(rr.new_on_tracked);
   out.rounds.push_back(er);
+  capture("after round " + std::to_string(round), round, int(tracker_.tracked().size()));
+}
+
+/// The map, the database's objects and the stones' true centroids now, for the report.
+void Experiment::capture(const std::string& label, int round, int move) {
+  ScanningMachine& m = tracker_.machine();
+  const PointCloud map = m.mapper().map();
+  SceneSnapshot s{.label = label, .round = round, .move = move, .time = m.now(), .map_points = map.size(),
+                  .map = thin(map, c_.scene_voxel)};
+  for (const ObjectRecord& o : tracker_.db().objects())
+    if (o.status != ObjectStatus::lost) s.objects.emplace_back(o.id, thin(o.cloud, 0.5 * c_.scene_voxel));
+  const Isometry3d E = tracker_.truth()->offset->map_offset(map);  // scoring only
+  for (const sim::Stone& st : m.world().site.stones) s.true_centroids.push_back(E.inverse() * st.centroid);
+  out.scene.snapshots.push_back(std::move(s));
+}
+
+/// The mapper's trajectory against the truth (world frame, as trajectory_error).
+void Experiment::capture_trajectory() {
+  const ScanningMachine& m = tracker_.machine();
+  const std::vector<StampedPose> est = m.mapper().trajectory();
+  const std::vector<StampedPose>& truth = m.state().truth;
+  out.scene.trajectory_error = trajectory_error(est, truth);
+  if (truth.empty()) return;
+  for (const StampedPose& p : est) {
+    const Isometry3d T = interpolate_pose(truth, p.time);
+    out.scene.trajectory.push_back({.time = p.time,
+                                    .position_error_m = (p.pose.translation() - T.translation()).norm(),
+                                    .rotation_error_deg = rotation_angle(T.linear().transpose() * p.pose.linear()) * kDegPerRad});
+  }
 }
 
 void Experiment::finish(double total_ms) {
+  capture_trajectory();
   out.timings.add("planning", planning_ms_);
   out.timings.add("physics", physics_ms_);
   out.timings.add("rescan_realign", realign_ms_);

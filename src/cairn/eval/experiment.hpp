@@ -24,7 +24,9 @@
 #include "cairn/eval/object_tracking.hpp"
 #include "cairn/core/log.hpp"
 #include "cairn/grasp/config.hpp"
+#include "cairn/grasp/output.hpp"
 #include "cairn/grasp/planner.hpp"
+#include "cairn/mapping/mapper.hpp"
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/sim/physics/physics.hpp"
 
@@ -72,6 +74,11 @@ struct ExperimentConfig {
   /// (1-based over the experiment, first attempt only); 0: off.
   double inject_friction = 0.0;
   int inject_move = 1;
+  /// The report's scene (ExperimentScene): clouds thinned to this voxel size, and the map also
+  /// captured after these moves of the first round (the paper's Fig. 11: before moving, after the
+  /// 2nd, the 4th and the last stone; every round's end is captured too).
+  double scene_voxel = 0.08;  // [m]
+  std::vector<int> scene_after_moves = {2, 4};
   SlipDetectionConfig detection;
   /// Scans, database, mapping, segmentation, objects, the simulated site (its physics and gripper).
   ObjectTrackingConfig tracking;
@@ -99,6 +106,8 @@ struct ExperimentConfig {
     v("place_support", place_support, "lowering ends when the ground carries this share of the weight");
     v("inject_friction", inject_friction, "tests: friction for one grasp (0: off)");
     v("inject_move", inject_move, "tests: the move (1-based) whose first grasp gets inject_friction");
+    v("scene_voxel", scene_voxel, "[m] the report's clouds thinned to this voxel size");
+    v("scene_after_moves", scene_after_moves, "the report's map also captured after these moves of round 1");
     v("detection", detection, "failed-grasp detection from the machine's signals");
   }
 };
@@ -140,7 +149,9 @@ struct GraspRecord {
   double planning_ms = 0.0;
   std::size_t force_closure = 0;
   grasp::Costs costs;
+  grasp::NormalizedCosts normalized_costs;  // the planning's Fig. 9: every force-closure grasp vs the selected
   Eigen::Isometry3d T_map_gripper = Eigen::Isometry3d::Identity();
+  double opening = 0.0;  // [m] pre-grasp opening
   Eigen::Vector2d target = Eigen::Vector2d::Zero();  // map frame
   double target_error_m = -1.0;  // true centroid (map frame) to the target, xy; -1: not planned
   double sim_time = 0.0, wall_s = 0.0;
@@ -163,6 +174,34 @@ struct ExperimentRound {
   RoundRecord resegmentation;
 };
 
+/// The map and the database at one instant (the report's viewer and the paper's Fig. 11), map
+/// frame, thinned to ExperimentConfig::scene_voxel.
+struct SceneSnapshot {
+  std::string label;  // "before moving", "round 1, move 2", "round 1", ...
+  int round = 0, move = 0;
+  double time = 0.0;          // [s] simulated
+  std::size_t map_points = 0; // of the full map
+  PointCloud map;
+  std::vector<std::pair<std::int64_t, PointCloud>> objects;  // the database's objects not lost (id, cloud)
+  std::vector<Vec3d> true_centroids;                         // per stone (truth, map frame: scoring only)
+};
+
+struct TrajectorySample {
+  double time = 0.0, position_error_m = 0.0, rotation_error_deg = 0.0;
+};
+
+/// What the report draws besides the records: the scene at instants, the registered drone cloud,
+/// the mapped trajectory against the truth, the gripper.
+struct ExperimentScene {
+  PointCloud drone;  // registered (map frame), thinned; empty without a registration
+  std::size_t drone_points = 0;
+  std::vector<SceneSnapshot> snapshots;
+  std::vector<TrajectorySample> trajectory;  // the mapper's poses vs the truth (world frame)
+  TrajectoryError trajectory_error;
+  GripperConfig gripper;
+  double voxel = 0.0;
+};
+
 struct ExperimentResult {
   std::string experiment;
   std::uint64_t seed = 0;
@@ -177,6 +216,7 @@ struct ExperimentResult {
   int placed = 0;                // ... whose stone ended within target_tolerance of its target (truth)
   int first_attempt_success = 0, within_attempts = 0;  // truth: the stone held and ended at its target
   int failures = 0, failures_detected = 0, false_alarms = 0;  // per attempt, truth vs detection
+  ExperimentScene scene;  // for the report (not in the JSON)
 };
 
 using ExperimentProgress = std::function<void(const std::string&, int, int)>;

@@ -62,6 +62,9 @@ class ScanningMachine {
   [[nodiscard]] sim::SimulatedWorld& world() { return world_; }
   [[nodiscard]] const sim::SimulatedWorld& world() const { return world_; }
   [[nodiscard]] Mapper& mapper() { return *mapper_; }
+  [[nodiscard]] const Mapper& mapper() const { return *mapper_; }
+  /// The simulated state estimate and its truth (scoring only).
+  [[nodiscard]] const sim::StateEstimate& state() const { return state_; }
 
  private:
   sim::SimulationConfig sim_;

@@ -38,14 +38,13 @@ int row_of(double ratio) { return kHeight - 10 - int(std::round(std::clamp(ratio
 int jitter(std::size_t i) { return int((i * 2654435761u) % std::uint32_t(kPanel / 2 - 20)); }
 
 /// One panel: all grasps in the left half, the selected in the right half (jittered by index),
-/// both divided by the median over all.
+/// both already divided by the median over all.
 void panel(Image& img, int x0, const std::vector<double>& all, const std::vector<double>& selected) {
-  const double m = std::max(median(all), 1e-9);
   for (double r = 0.5; r <= kMaxRatio; r += 0.5) hline(img, x0, x0 + kPanel, row_of(r), {220, 220, 220});
   hline(img, x0, x0 + kPanel, row_of(1.0), {0, 0, 0});
-  for (std::size_t i = 0; i < all.size(); ++i) dot(img, x0 + 10 + jitter(i), row_of(all[i] / m), {150, 150, 150});
+  for (std::size_t i = 0; i < all.size(); ++i) dot(img, x0 + 10 + jitter(i), row_of(all[i]), {150, 150, 150});
   for (std::size_t i = 0; i < selected.size(); ++i)
-    dot(img, x0 + kPanel / 2 + 10 + jitter(i), row_of(selected[i] / m), {210, 40, 40});
+    dot(img, x0 + kPanel / 2 + 10 + jitter(i), row_of(selected[i]), {210, 40, 40});
 }
 
 std::array<std::vector<double>, 3> split(const std::vector<Costs>& costs) {
@@ -73,10 +72,20 @@ io::Mesh gripper_mesh(const std::vector<ConvexPart>& parts, const Eigen::Isometr
   return mesh;
 }
 
+NormalizedCosts normalized_costs(const GraspPlanning& p) {
+  NormalizedCosts n{.all = split(p.force_closure_costs), .selected = split(p.selected_costs)};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const double m = std::max(median(n.all[k]), 1e-9);
+    for (double& v : n.all[k]) v /= m;
+    for (double& v : n.selected[k]) v /= m;
+  }
+  return n;
+}
+
 Image cost_figure(const GraspPlanning& p) {
   Image img(3 * kPanel + 2 * kGap, kHeight);
-  const auto all = split(p.force_closure_costs), selected = split(p.selected_costs);
-  for (std::size_t k = 0; k < 3; ++k) panel(img, int(k) * (kPanel + kGap), all[k], selected[k]);
+  const NormalizedCosts n = normalized_costs(p);
+  for (std::size_t k = 0; k < 3; ++k) panel(img, int(k) * (kPanel + kGap), n.all[k], n.selected[k]);
   return img;
 }
 
