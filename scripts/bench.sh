@@ -5,6 +5,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dir=${1:-build}
+cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCAIRN_BUILD_BENCH=ON >/dev/null
+cmake --build "$dir" --target bench_segmentation
 out=$(mktemp --suffix=.json)
 "$dir/bench/bench_segmentation" --benchmark_min_time=1 --benchmark_format=json --benchmark_out="$out" >/dev/null
 /usr/bin/python3 - "$out" <<'PY'

@@ -5,6 +5,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dir=${1:-build}
+# The benchmarks are not part of the test build (scripts/test.sh): configure and build this one.
+cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCAIRN_BUILD_BENCH=ON >/dev/null
+cmake --build "$dir" --target bench_icp
 out=$(mktemp --suffix=.json)
 "$dir/bench/bench_icp" --benchmark_min_time=1 --benchmark_format=json --benchmark_out="$out" >/dev/null
 /usr/bin/python3 - "$out" <<'PY'

@@ -13,6 +13,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 dir=${1:-build}
+# The benchmarks are not part of the test build (scripts/test.sh): configure and build this one.
+cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCAIRN_BUILD_BENCH=ON >/dev/null
+cmake --build "$dir" --target bench_registration
 if [[ $# -ge 2 ]]; then
   out=$2
 else

@@ -14,6 +14,8 @@
 #include <filesystem>
 
 #include "cairn/objects/object_db.hpp"
+#include "cairn/report/report.hpp"
+#include "support/browser.hpp"
 
 namespace cairn::eval {
 namespace {
@@ -104,6 +106,13 @@ TEST(Experiment, Exp1RegistersPlansGraspsAndDetectsEveryFailure) {
     EXPECT_EQ(db.integrity_check(), "ok");
   }
   std::filesystem::remove(c.tracking.database);
+  // The report of this run (issue #18 item 4): every instant captured, and it opens.
+  ASSERT_EQ(r.scene.snapshots.size(), 2u + (c.tracking.simulation.site.stones.count > 2 ? 1u : 0u));  // before, move 2, round 1
+  EXPECT_FALSE(r.scene.trajectory.empty());
+  const auto dir = std::filesystem::temp_directory_path() / ("cairn_test_experiment_report_" + std::to_string(::getpid()));
+  const report::ReportFiles files = report::write_report(dir, r);
+  test::expect_report_opens(files.html, dir / "screenshot.png");
+  std::filesystem::remove_all(dir);
   const GraspRecord& first = r.grasps.front();  // the injected one
   EXPECT_FALSE(first.success);
   EXPECT_TRUE(first.detected);
