@@ -60,7 +60,7 @@ TEST(ReportCharts, EveryPointDrawnAndClippedValuesCounted) {
   const Series s{.name = "a", .x = {1, 2, 3, 4}, .y = {0.1, 0.2, 5.0, 0.3}};
   const std::string svg = line_chart({.title = "t", .x_label = "x", .y_label = "y", .y_max = 1.0}, {s});
   EXPECT_EQ(count(svg, "<circle"), 4u);
-  EXPECT_NE(svg.find("1 beyond the axis"), std::string::npos);
+  EXPECT_NE(svg.find("(1 clipped)"), std::string::npos);
   EXPECT_EQ(count(svg, "<polyline"), 1u);
   const std::string bars = bar_chart({.title = "b"}, {{"x", 1.0}, {"y", 2.0}, {"z", 3.0}});
   EXPECT_EQ(count(bars, "<rect x="), 3u);

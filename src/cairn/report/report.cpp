@@ -124,7 +124,7 @@ std::string fig_registration_tries(const ExperimentResult& r) {
     rot.x.push_back(a.time), rot.y.push_back(a.rotation_error_deg), rot.filled.push_back(a.accepted);
     tra.x.push_back(a.time), tra.y.push_back(a.translation_error_m), tra.filled.push_back(a.accepted);
   }
-  return line_chart({.title = "Registration while scanning (filled: accepted)", .x_label = "triggered at [s]",
+  return line_chart({.title = "Registration triggers (filled: accepted)", .x_label = "triggered at [s]",
                      .y_label = "error vs truth", .y_max = 1.0},
                     {rot, tra});
 }
@@ -138,8 +138,8 @@ std::string fig_grasp_costs(const ExperimentResult& r) {
       strips[k].all.insert(strips[k].all.end(), n.all[k].begin(), n.all[k].end());
       strips[k].selected.insert(strips[k].selected.end(), n.selected[k].begin(), n.selected[k].end());
     }
-  return strip_chart({.title = "Grasp costs / median (Fig. 9 analog; grey: force closure, red: selected)",
-                      .y_label = "cost / median", .width = 620, .y_max = 3.0, .reference = 1.0,
+  return strip_chart({.title = "Grasp costs / median (Fig. 9 analog)",
+                      .x_label = "grey: every force-closure grasp, red: the selected", .y_label = "cost / median", .width = 620, .y_max = 3.0, .reference = 1.0,
                       .reference_label = "median"},
                      strips);
 }
@@ -160,7 +160,7 @@ std::string fig_pose_errors(const ExperimentResult& r, bool degrees, double tole
   return line_chart({.title = degrees ? "Object rotation errors after each round" : "Object position errors after each round",
                      .x_label = "round", .y_label = degrees ? "error [deg]" : "error [m]",
                      .y_max = degrees ? 10.0 : 0.5, .x_min = 0.5, .x_max = double(r.rounds.size()) + 0.5,
-                     .reference = tolerance, .reference_label = "target"},
+                     .reference = tolerance, .reference_label = "target", .integer_x = true},
                     series);
 }
 
@@ -172,7 +172,8 @@ std::string fig_target_errors(const ExperimentResult& r, double tolerance) {
       s.filled.push_back(r.grasps[i].success);
     }
   return line_chart({.title = "Stones vs their targets (filled: the grasp held)", .x_label = "attempt",
-                     .y_label = "distance [m]", .y_max = 1.0, .reference = tolerance, .reference_label = "10 cm"},
+                     .y_label = "distance [m]", .y_max = 1.0, .reference = tolerance, .reference_label = "tolerance",
+                     .integer_x = true},
                     {s});
 }
 

@@ -10,12 +10,18 @@ namespace cairn::report {
 namespace {
 
 constexpr int kLeft = 64, kRight = 18, kTop = 34, kBottom = 46, kLegend = 150;  // [px] margins
+constexpr std::size_t kMaxMarkers = 80;  // a longer line series is drawn without markers
 constexpr double kPad = 0.05;  // share of the data range added above the largest value
 constexpr const char* kFont = "font-family=\"sans-serif\" font-size=\"12\"";
 
 std::string num(double v) {
   std::ostringstream s;
-  s.precision(4);
+  if (std::abs(v) >= 1000.0) {  // counts and milliseconds: whole numbers, never 3e+05
+    s.setf(std::ios::fixed);
+    s.precision(0);
+  } else {
+    s.precision(4);
+  }
   s << (std::abs(v) < 1e-12 ? 0.0 : v);
   return s.str();
 }
@@ -60,8 +66,13 @@ class Frame {
       o << "<line x1=\"" << kLeft << "\" x2=\"" << right_ << "\" y1=\"" << num(Y(t)) << "\" y2=\"" << num(Y(t))
         << "\" stroke=\"#e4e4e4\"/><text x=\"" << kLeft - 6 << "\" y=\"" << num(Y(t) + 4)
         << "\" text-anchor=\"end\">" << num(t) << "</text>\n";
+    std::vector<double> xt = nice_ticks(x_.lo, x_.hi);
+    if (s_.integer_x) {
+      xt.clear();
+      for (double t = std::ceil(x_.lo); t <= x_.hi; t += std::max(1.0, std::ceil((x_.hi - x_.lo) / 10.0))) xt.push_back(t);
+    }
     if (x_ticks)
-      for (double t : nice_ticks(x_.lo, x_.hi))
+      for (double t : xt)
         o << "<line x1=\"" << num(X(t)) << "\" x2=\"" << num(X(t)) << "\" y1=\"" << bottom << "\" y2=\"" << bottom + 4
           << "\" stroke=\"black\"/><text x=\"" << num(X(t)) << "\" y=\"" << bottom + 17
           << "\" text-anchor=\"middle\">" << num(t) << "</text>\n";
@@ -85,7 +96,7 @@ class Frame {
 };
 
 std::string clip_note(int clipped) {
-  return clipped > 0 ? "(" + std::to_string(clipped) + " beyond the axis, drawn at its edge)" : "";
+  return clipped > 0 ? "(" + std::to_string(clipped) + " clipped)" : "";
 }
 
 }  // namespace
@@ -141,8 +152,10 @@ std::string line_chart(const ChartSpec& spec, const std::vector<Series>& series)
       for (std::size_t i = 0; i < n; ++i) body << num(f.X(s.x[i])) << ',' << num(f.Y(s.y[i])) << ' ';
       body << "\"/>\n";
     }
+    const bool markers = n <= kMaxMarkers || !s.filled.empty() || !s.lines;
     for (std::size_t i = 0; i < n; ++i) {
       clipped += f.clipped(s.y[i]);
+      if (!markers) continue;
       const bool fill = s.filled.empty() || (i < s.filled.size() && s.filled[i]);
       body << "<circle cx=\"" << num(f.X(s.x[i])) << "\" cy=\"" << num(f.Y(s.y[i])) << "\" r=\"3.5\" fill=\""
            << (fill ? s.color : "white") << "\" stroke=\"" << s.color << "\"/>\n";

@@ -15,6 +15,7 @@ struct ChartSpec {
   /// A dashed horizontal line (a target or a median), with its label.
   std::optional<double> reference;
   std::string reference_label;
+  bool integer_x = false;  // x ticks at whole numbers only (rounds, attempts)
 };
 
 struct Series {
@@ -43,7 +44,8 @@ struct Strip {
 [[nodiscard]] std::string xml_escape(const std::string& text);
 
 /// Points (and lines) of every series, a legend when more than one; values outside the axis
-/// range are drawn at its edge (clipped) and counted in the title's note.
+/// range are drawn at its edge (clipped) and counted in the title's note. A line series of more
+/// than 80 points without per-point fill is drawn without markers.
 [[nodiscard]] std::string line_chart(const ChartSpec& spec, const std::vector<Series>& series);
 [[nodiscard]] std::string bar_chart(const ChartSpec& spec, const std::vector<Bar>& bars, const std::string& color = "#4c72b0");
 [[nodiscard]] std::string strip_chart(const ChartSpec& spec, const std::vector<Strip>& strips);
