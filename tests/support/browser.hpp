@@ -172,7 +172,7 @@ inline void expect_report_opens(const std::filesystem::path& page, const std::fi
   std::printf("report: %s; screenshot %dx%d: %.1f %% canvas background, %.2f %% coloured\n", r.status.c_str(),
               r.screenshot->width, r.screenshot->height, 100 * background, 100 * drawn);
   EXPECT_GT(background, 0.10) << "the viewer's canvas is missing from the screenshot";
-  EXPECT_GT(drawn, 0.002) << "nothing coloured drawn";
+  EXPECT_GT(drawn, 0.0005) << "nothing coloured drawn";  // a blank canvas has none; 1 stone ~0.3 %
 }
 
 }  // namespace cairn::test
