@@ -2,12 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <iterator>
 #include <sstream>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/image.hpp"
+#include "cairn/core/io/detail.hpp"
 #include "cairn/report/assets.hpp"
 #include "cairn/report/svg.hpp"
 
@@ -26,17 +25,6 @@ constexpr double kObjectLift = 0.05;  // [m] objects drawn this far above the ma
 constexpr double kTopViewMargin = 3.0;  // [m] top views: the objects' and targets' extent grown by this
 constexpr std::array<const char*, 6> kPalette = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
 
-void write_text(const fs::path& file, const std::string& text) {
-  std::ofstream f(file, std::ios::binary);
-  f << text;
-  if (!f) throw InputError(file.string() + ": cannot write");
-}
-
-std::string read_binary(const fs::path& file) {
-  std::ifstream f(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
-}
-
 std::string hex(Rgb c) {
   char s[8];
   std::snprintf(s, sizeof s, "#%02x%02x%02x", c.r, c.g, c.b);
@@ -53,11 +41,12 @@ Vec3d scene_origin(const ExperimentResult& r) {
   return Vec3d::Zero();
 }
 
-json parts_json(const GraspRecord& g, const GripperConfig& gripper) {
+/// The gripper's boxes at the grasp, relative to `o`.
+json parts_json(const GraspRecord& g, const GripperConfig& gripper, const Vec3d& o) {
   json parts = json::array();
   for (const ConvexPart& p : gripper_parts(gripper, g.opening)) {
     const Eigen::Matrix3d R = g.T_map_gripper.linear() * p.axes;
-    const Vec3d c = g.T_map_gripper * p.center;
+    const Vec3d c = g.T_map_gripper * p.center - o;
     parts.push_back({{"c", {c.x(), c.y(), c.z()}},
                      {"h", {p.half_extents.x(), p.half_extents.y(), p.half_extents.z()}},
                      {"R", {R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)}}});
@@ -89,11 +78,8 @@ json scene_json(const ExperimentResult& r, const Vec3d& o) {
                       {"success", g.success}, {"detected", g.detected}, {"color", hex(object_color(g.object))},
                       {"tcp", {t.x(), t.y(), t.z()}},
                       {"target", {g.target.x() - o.x(), g.target.y() - o.y()}},
-                      {"parts", planned ? parts_json(g, r.scene.gripper) : json::array()}});
+                      {"parts", planned ? parts_json(g, r.scene.gripper, o) : json::array()}});
   }
-  // The gripper parts are in the map frame: move them into the viewer's.
-  for (json& g : grasps)
-    for (json& p : g["parts"]) p["c"] = {p["c"][0].get<double>() - o.x(), p["c"][1].get<double>() - o.y(), p["c"][2].get<double>() - o.z()};
   return {{"origin", {o.x(), o.y(), o.z()}}, {"scale", 1.0 / kCm}, {"drone", encode_cloud(r.scene.drone, o)},
           {"snapshots", snaps}, {"grasps", grasps}, {"experiment", r.experiment}, {"seed", r.seed}};
 }
@@ -349,7 +335,7 @@ ReportFiles write_report(const fs::path& dir, const ExperimentResult& r, const R
       {"fig_trajectory.svg", fig_trajectory(r)}};
   std::ostringstream figures;
   for (const auto& [name, svg] : svgs) {
-    write_text(dir / name, svg);
+    io::detail::write_file(dir / name, svg);
     files.figures.push_back(dir / name);
     figures << "<figure>" << svg << "</figure>\n";
   }
@@ -379,13 +365,13 @@ ReportFiles write_report(const fs::path& dir, const ExperimentResult& r, const R
        "(green held, red failed); rings: the targets; black dots: the stones' true centroids.</p>\n"
     << "<div id=\"status\">loading</div><pre id=\"errors\"></pre>\n"
     << "<h2>The map at captured instants (Fig. 11 analog)</h2><p class=\"note\">" << xml_escape(labels) << "</p>\n"
-    << "<img class=\"wide\" alt=\"map at instants\" src=\"data:image/png;base64," << base64(read_binary(png)) << "\">\n"
+    << "<img class=\"wide\" alt=\"map at instants\" src=\"data:image/png;base64," << base64(io::detail::read_file(png)) << "\">\n"
     << "<h2>Figures</h2>\n<div class=\"figures\">" << figures.str() << "</div>\n"
     << "<h2>Grasps</h2>\n" << grasps_html(r) << "\n<h2>Rounds</h2>\n" << rounds_html(r) << "\n<h2>Notes</h2><ul>";
   for (const std::string& n : r.notes) h << "<li>" << xml_escape(n) << "</li>";
   h << "</ul>\n<script type=\"application/json\" id=\"scene\">" << scene_json(r, origin).dump() << "</script>\n"
     << "<script type=\"module\">" << assets::viewer_js() << "</script>\n</body></html>\n";
-  write_text(files.html, h.str());
+  io::detail::write_file(files.html, h.str());
   return files;
 }
 
