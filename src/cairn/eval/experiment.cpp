@@ -137,6 +137,7 @@ class Experiment {
   bool attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target);
   void score_round(int round, const RoundRecord& rr);
   void capture(const std::string& label, int round, int move);
+  void capture(const std::string& label, int round, int move, const PointCloud& map, const Isometry3d& E);
   void capture_trajectory();
   void progress(const std::string& what, int done, int total) const {
     if (progress_) progress_(what, done, total);
@@ -463,18 +464,22 @@ void Experiment::score_round(int round, const RoundRecord& rr) {
   for (const ObjectRecord& o : tracker_.db().objects(false)) er.lost += o.status == ObjectStatus::lost;
   er.duplicated = int(rr.new_on_tracked);
   out.rounds.push_back(er);
-  capture("after round " + std::to_string(round), round, int(tracker_.tracked().size()));
+  capture("after round " + std::to_string(round), round, int(tracker_.tracked().size()), map, E);
 }
 
 /// The map, the database's objects and the stones' true centroids now, for the report.
 void Experiment::capture(const std::string& label, int round, int move) {
+  const PointCloud map = tracker_.machine().mapper().map();
+  capture(label, round, move, map, tracker_.truth()->offset->map_offset(map));  // E: scoring only
+}
+
+/// The same with the map and its offset from the truth (map -> world) at hand.
+void Experiment::capture(const std::string& label, int round, int move, const PointCloud& map, const Isometry3d& E) {
   ScanningMachine& m = tracker_.machine();
-  const PointCloud map = m.mapper().map();
   SceneSnapshot s{.label = label, .round = round, .move = move, .time = m.now(), .map_points = map.size(),
                   .map = thin(map, c_.scene_voxel)};
   for (const ObjectRecord& o : tracker_.db().objects())
     if (o.status != ObjectStatus::lost) s.objects.emplace_back(o.id, thin(o.cloud, 0.5 * c_.scene_voxel));
-  const Isometry3d E = tracker_.truth()->offset->map_offset(map);  // scoring only
   for (const sim::Stone& st : m.world().site.stones) s.true_centroids.push_back(E.inverse() * st.centroid);
   out.scene.snapshots.push_back(std::move(s));
 }
