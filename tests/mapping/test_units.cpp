@@ -227,6 +227,34 @@ TEST(LocalMap, VoxelCentroidsCropRemoveInsert) {
   EXPECT_EQ(strict.snapshot().size(), 1u);  // only the voxel with two points
 }
 
+// A snapshot is computed once per state of the map: asked again it is the same cloud; every
+// change (an insert into an existing voxel, an erase, a clear) and a copy of the map that changes
+// on its own give fresh ones.
+TEST(LocalMap, SnapshotFollowsEveryChange) {
+  LocalMap map;  // smoothing on (Table-3-style defaults)
+  PointCloud c;
+  for (int i = 0; i < 30; ++i)
+    for (int j = 0; j < 30; ++j) c.points.emplace_back(0.05f * i, 0.05f * j, 0.002f * float((i * 7 + j * 3) % 5));  // one per voxel
+  map.insert(c);
+  const PointCloud a = map.snapshot();
+  EXPECT_EQ(map.snapshot().points, a.points);
+  PointCloud same_voxel;
+  same_voxel.points = {c.points[465] + Vec3f(0.0f, 0.0f, 0.01f)};  // moves one voxel's centroid
+  map.insert(same_voxel);
+  const PointCloud b = map.snapshot();
+  ASSERT_EQ(b.size(), a.size());
+  EXPECT_NE(b.points, a.points);
+  LocalMap copy = map;
+  EXPECT_EQ(copy.remove_sphere(c.world(0), 0.12), 8u);  // i^2 + j^2 < 5.76 at 5 cm spacing
+  EXPECT_EQ(copy.snapshot().size() + 8, b.size());
+  EXPECT_EQ(map.snapshot().points, b.points);  // the original is untouched
+  LocalMap moved = std::move(copy);
+  EXPECT_EQ(moved.snapshot().size() + 8, b.size());
+  EXPECT_TRUE(copy.snapshot().empty());  // the moved-from map is empty, and so is its snapshot
+  map.clear();
+  EXPECT_TRUE(map.snapshot().empty());
+}
+
 // The voxel index grows (open addressing) and is rebuilt after erasing: every voxel keeps its own
 // points, erased ones are gone, and later inserts land in the surviving voxels.
 TEST(LocalMap, IndexSurvivesGrowthAndErasing) {

@@ -1,5 +1,7 @@
 #include "cairn/mapping/local_map.hpp"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -69,6 +71,7 @@ void LocalMap::add(const Eigen::Vector3d& p_world) {
   Voxel& v = voxels_[index_pos_[s]];
   v.sum += p;
   ++v.count;
+  ++revision_;
 }
 
 void LocalMap::insert(const PointCloud& cloud) {
@@ -83,7 +86,10 @@ template <class Keep>
 std::size_t LocalMap::filter(Keep keep) {
   const std::size_t before = voxels_.size();
   std::erase_if(voxels_, [&](const Voxel& v) { return !keep(Eigen::Vector3d(origin_ + v.sum / v.count)); });
-  if (voxels_.size() != before) rebuild_index(voxels_.size());
+  if (voxels_.size() != before) {
+    rebuild_index(voxels_.size());
+    ++revision_;
+  }
   return before - voxels_.size();
 }
 
@@ -107,12 +113,24 @@ std::size_t LocalMap::apply(const MapEdit& edit) {
 }
 
 void LocalMap::clear() {
+  ++revision_;
   voxels_.clear();
   index_keys_.clear();
   index_pos_.clear();
 }
 
 PointCloud LocalMap::snapshot() const {
+  const std::lock_guard lock(cache_.mutex);
+  if (!cache_.cloud || cache_.revision != revision_) {
+    // Isolated: the lock is held while smoothing runs TBB tasks, so this thread must not pick up
+    // an outside task that could ask for the same snapshot.
+    tbb::this_task_arena::isolate([&] { cache_.cloud = std::make_shared<const PointCloud>(compute_snapshot()); });
+    cache_.revision = revision_;
+  }
+  return *cache_.cloud;
+}
+
+PointCloud LocalMap::compute_snapshot() const {
   PointCloud out;
   out.origin = origin_;
   out.reserve(voxels_.size());

@@ -5,6 +5,8 @@
 // of everything seen). Other stages take snapshots; object grasps remove a sphere (Sec. 5,
 // R_obj) and insertions add points (e.g. a placed stone's model).
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -43,7 +45,8 @@ class LocalMap {
 
   /// One point per voxel with at least n_min points, at the centroid (world = origin + point),
   /// then smoothed (config.smoothing_radius > 0, see smooth_surface). The "count" scalar field
-  /// holds the number of points per voxel (unsmoothed snapshots only).
+  /// holds the number of points per voxel (unsmoothed snapshots only). Computed once per state
+  /// of the map: asking again before the next insert, erase or clear returns the same cloud.
   [[nodiscard]] PointCloud snapshot() const;
   [[nodiscard]] std::size_t num_voxels() const { return voxels_.size(); }
   [[nodiscard]] const LocalMapConfig& config() const { return config_; }
@@ -60,8 +63,34 @@ class LocalMap {
   template <class Keep>
   std::size_t filter(Keep keep);
   void rebuild_index(std::size_t capacity);
+  [[nodiscard]] PointCloud compute_snapshot() const;
+
+  /// The last snapshot and the map revision it was taken at (smoothing is the expensive part of
+  /// a snapshot, and several stages ask for the same state). A copy or move of the map, and the
+  /// moved-from map, start without one.
+  struct SnapshotCache {
+    std::mutex mutex;
+    std::uint64_t revision = 0;
+    std::shared_ptr<const PointCloud> cloud;
+    SnapshotCache() = default;
+    SnapshotCache(const SnapshotCache& /*other*/) {}
+    SnapshotCache(SnapshotCache&& other) noexcept { other.cloud.reset(); }  // the moved-from map is empty
+    SnapshotCache& operator=(const SnapshotCache& /*other*/) {
+      const std::lock_guard lock(mutex);
+      cloud.reset();
+      return *this;
+    }
+    SnapshotCache& operator=(SnapshotCache&& other) noexcept {
+      cloud.reset();
+      other.cloud.reset();
+      return *this;
+    }
+    ~SnapshotCache() = default;
+  };
 
   LocalMapConfig config_;
+  std::uint64_t revision_ = 0;  // bumped by every change of the voxels
+  mutable SnapshotCache cache_;
   bool has_origin_ = false;
   Vec3d origin_ = Vec3d::Zero();
   // Voxels stored densely; an open-addressing index (linear probing, power-of-two size, at most
