@@ -435,22 +435,24 @@ Eigen::Isometry3d Mapper::current_pose() const {
   return graph_.pose(graph_.num_nodes() - 1) * T_cabin_H_.inverse();
 }
 
-MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config, const MappingProgress& progress) {
+MapRunResult map_sweeps(const MapRunInputs& inputs, const SweepSource& next, const MappingConfig& config,
+                        const MappingProgress& progress) {
   Stopwatch total;
-  Mapper mapper({.robot = run.robot, .T_cabin_sensor = run.T_cabin_sensor}, config);
-  mapper.add_state_estimates(run.state_estimate);
-  mapper.add_joint_states(run.joint_states);
-  if (run.scans.empty()) throw InputError("mapping: " + run.root.string() + " holds no scans");
-  const std::size_t total_pairs = (run.scans.size() + 1) / 2;
+  Mapper mapper({.robot = inputs.robot, .T_cabin_sensor = inputs.T_cabin_sensor}, config);
+  mapper.add_state_estimates(inputs.state_estimate);
+  mapper.add_joint_states(inputs.joint_states);
+  const std::size_t total_pairs = (inputs.num_sweeps + 1) / 2;
   double read_ms = 0.0;
-  for (std::size_t k = 0; k < run.scans.size(); ++k) {
-    const io::ScanInfo& s = run.scans[k];
+  std::size_t k = 0;
+  RecordedSweep sweep;
+  for (;; ++k) {
     Stopwatch sw;
-    PointCloud cloud = run.read_scan(s);
+    if (!next(sweep)) break;
     read_ms += sw.elapsed_ms();
-    mapper.add_sweep(s.sensor, cloud, s.t_start, s.t_end);
-    if (progress && (k % 2 == 1 || k + 1 == run.scans.size())) progress((k + 1) / 2, total_pairs);
+    mapper.add_sweep(sweep.sensor, sweep.cloud, sweep.t_start, sweep.t_end);
+    if (progress && (k % 2 == 1 || k + 1 == inputs.num_sweeps)) progress((k + 1) / 2, total_pairs);
   }
+  if (k == 0) throw InputError("mapping: " + inputs.name + " holds no scans");
   const double online_seconds = total.elapsed_ms() / 1000.0;
   mapper.finish();
   MapRunResult r;
@@ -465,6 +467,21 @@ MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config, c
   r.stats = mapper.stats();
   r.seconds = total.elapsed_ms() / 1000.0;
   return r;
+}
+
+MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config, const MappingProgress& progress) {
+  if (run.scans.empty()) throw InputError("mapping: " + run.root.string() + " holds no scans");
+  const MapRunInputs inputs{.robot = run.robot, .T_cabin_sensor = run.T_cabin_sensor,
+                            .state_estimate = run.state_estimate, .joint_states = run.joint_states,
+                            .num_sweeps = run.scans.size(), .name = run.root.string()};
+  std::size_t k = 0;
+  const SweepSource files = [&](RecordedSweep& out) {
+    if (k == run.scans.size()) return false;
+    const io::ScanInfo& s = run.scans[k++];
+    out = {.sensor = s.sensor, .cloud = run.read_scan(s), .t_start = s.t_start, .t_end = s.t_end};
+    return true;
+  };
+  return map_sweeps(inputs, files, config, progress);
 }
 
 TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate, const std::vector<StampedPose>& truth) {

@@ -193,6 +193,32 @@ struct MapRunResult {
   double online_seconds = 0.0;  // streaming part only (reading sweeps .. last node), without finish()
 };
 
+/// One sweep as a source hands it over: points in the sensor frame, absolute per-point times,
+/// the "ring" field.
+struct RecordedSweep {
+  std::string sensor;  // "H" or "V"
+  PointCloud cloud;
+  double t_start = 0.0, t_end = 0.0;  // [s]
+};
+/// Fills the next sweep in time order; false when none is left.
+using SweepSource = std::function<bool(RecordedSweep&)>;
+
+/// What mapping a recorded run needs besides its sweeps.
+struct MapRunInputs {
+  RobotModel robot;
+  std::map<std::string, Eigen::Isometry3d> T_cabin_sensor;
+  std::vector<StampedPose> state_estimate;  // T_world_cabin
+  std::vector<JointState> joint_states;
+  std::size_t num_sweeps = 0;  // for the progress
+  std::string name;            // for messages
+};
+
+/// Maps a recorded run: every state estimate and joint state first, then the sweeps streamed
+/// from `next` (a run directory's files, a rosbag, ...), then finish(). Throws InputError when
+/// the source holds no sweep.
+[[nodiscard]] MapRunResult map_sweeps(const MapRunInputs& inputs, const SweepSource& next,
+                                      const MappingConfig& config = {}, const MappingProgress& progress = {});
+
 /// Maps a whole run directory (sweeps in time order; unreadable sweeps are InputErrors).
 [[nodiscard]] MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config = {},
                                    const MappingProgress& progress = {});
