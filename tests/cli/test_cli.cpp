@@ -9,6 +9,7 @@
 
 #include "cairn/core/io/io.hpp"
 #include <iterator>
+#include "support/shared_runs.hpp"
 #include "support/test_data.hpp"
 
 using namespace cairn;
@@ -66,10 +67,10 @@ std::filesystem::path small_scene(const std::filesystem::path& dir, bool with_na
 
 TEST(Cli, ScaleAndRegisterFollowTheContract) {
   const auto dir = test::temp_dir("cli_register");
-  const auto run_dir = dir / "run";
-  ASSERT_EQ(run("simulate --scenario exp1 --seed 1 --duration 8 --out " + run_dir.string()).code, 0);
-  const auto map = dir / "map.ply";
-  ASSERT_EQ(run("map " + run_dir.string() + " --out " + map.string()).code, 0);
+  // exp1 seed 1, 8 s, mapped (the CLI's simulate and map are tested below on shorter runs).
+  const auto shared = test::shared_run(test::kExp1Drone8s);
+  const auto run_dir = shared / "run";
+  const auto map = shared / "map.ply";
   const std::string drone = (run_dir / "drone" / "cloud.ply").string();
   const std::string sfm = " --sfm " + (run_dir / "drone" / "sparse").string() + " --metric " +
                           (run_dir / "drone" / "vins_trajectory.tum").string();
@@ -123,6 +124,16 @@ TEST(Cli, ScaleAndRegisterFollowTheContract) {
 
 TEST(Cli, ProtocolRegistersWhileMapping) {
   const auto dir = test::temp_dir("cli_protocol");
+#if defined(__SANITIZE_ADDRESS__)
+  // The sanitizers run the command's path once, on one trial; the figures are asserted in Release.
+  const CmdResult once = run("protocol --seeds 1 --first-seed 3 --duration 5 --every 5 --out " + dir.string());
+  ASSERT_EQ(once.code, 0) << once.err;
+  EXPECT_EQ(nlohmann::json::parse(once.out)["all"]["trials"].get<int>(), 1);
+  EXPECT_GT(nlohmann::json::parse(once.out)["all"]["reoptimize_ms_median"].get<double>(), 1.0);
+  EXPECT_TRUE(std::filesystem::exists(dir / "protocol.json"));
+  EXPECT_NE(once.err.find("t =  5.0 s"), std::string::npos);  // progress on stderr
+  return;
+#endif
   const CmdResult r = run("protocol --seeds 1 --first-seed 3 --duration 10 --every 5 --out " + dir.string());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
@@ -393,6 +404,38 @@ TEST(Cli, MapWritesAMapAndATrajectory) {
   const CmdResult bad_set = run("map " + run_dir.string() + " --out " + map.string() + " --set mapping.m=0");
   EXPECT_EQ(bad_set.code, 2);
   EXPECT_NE(bad_set.err.find("mapping.m"), std::string::npos) << bad_set.err;
+  EXPECT_EQ(run("map --out " + map.string()).code, 2);  // neither RUN_DIR nor --bag
+}
+
+// The run as a rosbag (docs/ros.md): `cairn simulate --bag` writes it beside the run directory,
+// `cairn map --bag` maps straight from it; a cairn built without ROS refuses --bag with exit 2.
+TEST(Cli, SimulateAndMapThroughARosbag) {
+  const auto dir = test::temp_dir("cli_bag");
+  const auto bag = dir / "run.bag";
+#if defined(CAIRN_WITH_ROS)
+  const CmdResult s = run("simulate --scenario exp1 --seed 1 --duration 2 --no-drone --out " + (dir / "run").string() +
+                          " --bag " + bag.string());
+  ASSERT_EQ(s.code, 0) << s.err;
+  const auto sj = nlohmann::json::parse(s.out);
+  EXPECT_EQ(sj["bag"]["messages"]["/state_estimate/odometry"].get<int>(), 201);  // 100 Hz over 2 s
+  EXPECT_GT(sj["bag"]["messages"]["/lidar_h/velodyne_points"].get<int>(), 15);
+  const CmdResult from_dir = run("map " + (dir / "run").string() + " --out " + (dir / "a.ply").string());
+  const CmdResult from_bag = run("map --bag " + bag.string() + " --out " + (dir / "b.ply").string());
+  ASSERT_EQ(from_dir.code, 0) << from_dir.err;
+  ASSERT_EQ(from_bag.code, 0) << from_bag.err;
+  const auto a = nlohmann::json::parse(from_dir.out), b = nlohmann::json::parse(from_bag.out);
+  EXPECT_EQ(b["nodes"], a["nodes"]);
+  EXPECT_NEAR(b["map_points"].get<double>() / a["map_points"].get<double>(), 1.0, 0.01);
+  const CmdResult both = run("map " + (dir / "run").string() + " --bag " + bag.string() + " --out " + (dir / "c.ply").string());
+  EXPECT_EQ(both.code, 2);
+  const CmdResult missing = run("map --bag " + (dir / "none.bag").string() + " --out " + (dir / "c.ply").string());
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("none.bag"), std::string::npos) << missing.err;
+#else
+  const CmdResult r = run("map --bag " + bag.string() + " --out " + (dir / "c.ply").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("without ROS"), std::string::npos) << r.err;
+#endif
 }
 
 TEST(Cli, RegisterIndoorFragmentsWithThePreset) {

@@ -1,5 +1,6 @@
 // Segment-based global registration (Sec. 4.4) end to end on the simulator: the exp1 site is
-// simulated once (8 s of cabin swinging + the drone survey), mapped by the mapping stage, and the
+// simulated once per ctest run (8 s of cabin swinging + the drone survey; support/shared_runs.hpp),
+// mapped by the mapping stage, and the
 // drone cloud registered into that map under different source frames. Ground truth: the
 // simulator's T_map_drone.
 #include <gtest/gtest.h>
@@ -18,6 +19,7 @@
 #include "cairn/registration/scale_recovery.hpp"
 #include "cairn/segmentation/evaluation.hpp"
 #include "cairn/sim/simulation.hpp"
+#include "support/shared_runs.hpp"
 #include "support/test_data.hpp"
 
 namespace cairn {
@@ -43,12 +45,9 @@ struct Fixture {
 const Fixture& fixture() {
   static const Fixture f = [] {
     Fixture x;
-    x.run_dir = test::temp_dir("registration_exp1") / "run";
-    sim::SimulationConfig cfg = sim::scenario_config("exp1", sim::default_real_mesh_dir());
-    cfg.with_scan_truth = false;
-    (void)sim::simulate_run("exp1", cfg, 1, 8.0, x.run_dir, true);
-    const io::RunDirectory rd = io::open_run_directory(x.run_dir);
-    x.map = map_run(rd, {}).map;
+    const fs::path shared = test::shared_run(test::kExp1Drone8s);
+    x.run_dir = shared / "run";
+    x.map = io::load_cloud(shared / "map.ply");
     x.drone_sfm = io::load_cloud(x.run_dir / "drone" / "cloud.ply");
     std::ifstream in(x.run_dir / "truth" / "drone.json");
     x.T_map_sfm = Similarity::from_matrix(matrix_from_json(nlohmann::json::parse(in)["T_map_drone"]));
