@@ -10,20 +10,25 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # kernels: eigen nanoflann tbb; config/CLI/logging: yaml-cpp cli11 spdlog fmt nlohmann-json;
 # pictures: zlib; simulator: embree (ray casting), mujoco (grasp physics); mapping: ceres;
-# object database: sqlite3; report: npm (three.js).
+# object database: sqlite3; report: npm (three.js); ROS 1 from Debian (ros/, --bag): rosbag
+# storage and the message headers.
 PACKAGES=(
   build-essential cmake ninja-build pkg-config python3
   libeigen3-dev libnanoflann-dev libtbb-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev zlib1g-dev
   libembree-dev libmujoco-dev libceres-dev libsqlite3-dev
+  librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev libstd-msgs-dev
+  pluginlib-dev librcpputils-dev libament-index-cpp-dev
 )
 # npm from Debian unless a node.js with npm is installed already (e.g. NodeSource's, which
 # conflicts with Debian's npm package).
 command -v npm >/dev/null || PACKAGES+=(npm)
 # tests and benchmarks: gtest gmock benchmark; the report opened in headless chromium;
-# peers (tests/bench only, never linked by the library): pcl, open3d
+# peers (tests/bench only, never linked by the library): pcl, open3d; Debian's `rosbag info` and
+# `rosbag check` read the bags cairn writes (python3-rosbag and the messages' Python modules)
 if [ "${1:-}" = "--tests" ]; then
-  PACKAGES+=(libgtest-dev libgmock-dev libbenchmark-dev chromium libpcl-dev libopen3d-dev)
+  PACKAGES+=(libgtest-dev libgmock-dev libbenchmark-dev chromium libpcl-dev libopen3d-dev python3-rosbag
+             python3-sensor-msgs python3-nav-msgs python3-geometry-msgs python3-tf2-msgs python3-std-msgs)
 fi
 export DEBIAN_FRONTEND=noninteractive
 missing=()

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "cairn/core/config.hpp"
+#include "cairn/core/io/bag_topics.hpp"
 #include "cairn/core/normals.hpp"
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/eval/experiment.hpp"
@@ -29,6 +30,7 @@ struct AppConfig {
   grasp::GraspConfig grasp;
   sim::SimulationConfig simulation;  // generic defaults; `cairn simulate` starts from its scenario
   eval::ExperimentConfig experiment;  // `cairn demo`: the experiment's own parameters
+  io::BagTopics bag;                  // `--bag`: rosbag topic and frame names
 
   template <class V>
   void visit(V& v) {
@@ -42,6 +44,7 @@ struct AppConfig {
     v("grasp", grasp, "grasp pose planning (Sec. 5)");
     v("simulation", simulation, "simulator: site, excavator, LiDARs, state estimation, drone");
     v("experiment", experiment, "experiments 1 and 2 end to end (Sec. 6, `cairn demo`)");
+    v("bag", bag, "rosbag topic and frame names (`--bag`, docs/ros.md)");
   }
 };
 

@@ -1,11 +1,15 @@
-// cairn map RUN_DIR --out MAP.ply [--trajectory OUT.txt]: LiDAR mapping (Sec. 4.2) of a run
-// directory. Progress and a per-stage timing summary on stderr, one JSON summary on stdout.
+// cairn map RUN_DIR|--bag RUN.bag --out MAP.ply [--trajectory OUT.txt]: LiDAR mapping (Sec. 4.2) of
+// a run directory or a rosbag. Progress and a per-stage timing summary on stderr, one JSON summary
+// on stdout.
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "app_config.hpp"
+#include "bag_support.hpp"
+#include "cairn/core/error.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/io/trajectory.hpp"
@@ -34,11 +38,14 @@ nlohmann::json error_json(const TrajectoryError& e) {
 void add_map_command(CLI::App& app, std::function<int()>& run) {
   struct Args {
     CommonOptions common;
-    std::string run_dir, out, trajectory;
+    std::string run_dir, bag, out, trajectory;
   };
   auto args = std::make_shared<Args>();
-  auto* cmd = app.add_subcommand("map", "LiDAR mapping of a run directory (Sec. 4.2): map cloud + trajectory");
-  cmd->add_option("RUN_DIR", args->run_dir, "run directory written by `cairn simulate`")->required();
+  auto* cmd = app.add_subcommand("map", "LiDAR mapping of a run directory or a rosbag (Sec. 4.2): map cloud + trajectory");
+  auto* dir_opt = cmd->add_option("RUN_DIR", args->run_dir, "run directory written by `cairn simulate`");
+  auto* bag_opt = cmd->add_option("--bag", args->bag, "map a rosbag instead (topics: bag.* settings, docs/ros.md)");
+  dir_opt->excludes(bag_opt);
+  bag_opt->excludes(dir_opt);
   cmd->add_option("--out", args->out, "output map cloud (.ply, .pcd, .xyz)")->required();
   cmd->add_option("--trajectory", args->trajectory, "optimised cabin trajectory T_world_cabin (TUM format)");
   args->common.add_to(*cmd);
@@ -46,21 +53,30 @@ void add_map_command(CLI::App& app, std::function<int()>& run) {
     run = [args] {
       const AppConfig cfg = args->common.load();
       cfg.mapping.validate();
-      const io::RunDirectory rd = io::open_run_directory(args->run_dir);
-      spdlog::info("map: {} ({} sweeps, {:.1f} s)", args->run_dir, rd.scans.size(), rd.duration);
+      if (args->run_dir.empty() == args->bag.empty()) throw InputError("map: give RUN_DIR or --bag RUN.bag");
       std::size_t last = 0;
-      const MapRunResult r = map_run(rd, cfg.mapping, [&last](std::size_t done, std::size_t total) {
+      const MappingProgress progress = [&last](std::size_t done, std::size_t total) {
         if (done == total || done >= last + 50) {
           spdlog::info("map: {}/{} scan pairs", done, total);
           last = done;
         }
-      });
+      };
+      std::optional<io::RunDirectory> rd;
+      MapRunResult r;
+      if (!args->bag.empty()) {
+        spdlog::info("map: rosbag {}", args->bag);
+        r = map_from_bag(args->bag, cfg.mapping, progress, cfg.bag);
+      } else {
+        rd = io::open_run_directory(args->run_dir);
+        spdlog::info("map: {} ({} sweeps, {:.1f} s)", args->run_dir, rd->scans.size(), rd->duration);
+        r = map_run(*rd, cfg.mapping, progress);
+      }
       r.timings.log("map:");
       io::save_cloud(args->out, r.map);
       if (!args->trajectory.empty()) write_trajectory(args->trajectory, r.trajectory);
       nlohmann::json timings;
       for (const auto& [stage, ms] : r.timings.stages) timings[stage] = ms;
-      nlohmann::json j{{"run", args->run_dir},
+      nlohmann::json j{{"run", args->bag.empty() ? args->run_dir : args->bag},
                        {"out", args->out},
                        {"sweeps", r.stats.sweeps},
                        {"pairs", r.stats.pairs},
@@ -77,8 +93,8 @@ void add_map_command(CLI::App& app, std::function<int()>& run) {
                        {"seconds", r.seconds},
                        {"pairs_per_second", r.seconds > 0 ? double(r.stats.pairs) / r.seconds : 0.0},
                        {"timings_ms", timings}};
-      const auto truth_file = rd.truth_dir() / "cabin_poses.tum";
-      if (std::filesystem::exists(truth_file)) {
+      const auto truth_file = rd ? rd->truth_dir() / "cabin_poses.tum" : std::filesystem::path{};
+      if (rd && std::filesystem::exists(truth_file)) {
         const std::vector<StampedPose> truth = io::read_stamped_poses(truth_file);
         j["ate_raw"] = error_json(trajectory_error(r.raw_trajectory, truth));
         j["ate_mapped"] = error_json(trajectory_error(r.trajectory, truth));

@@ -5,6 +5,8 @@
 #include <nlohmann/json.hpp>
 
 #include "app_config.hpp"
+#include "bag_support.hpp"
+#include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/error.hpp"
 #include "cairn/sim/simulation.hpp"
 #include "commands.hpp"
@@ -17,6 +19,7 @@ struct SimulateArgs {
   std::uint64_t seed = 1;
   double duration = 20.0;
   std::string out;
+  std::string bag;
   std::string real_meshes;
   bool overwrite = false;
   bool no_drone = false;
@@ -27,6 +30,11 @@ int run_simulate(const SimulateArgs& a) {
   const std::filesystem::path mesh_dir = a.real_meshes.empty() ? sim::default_real_mesh_dir() : std::filesystem::path(a.real_meshes);
   if (!a.real_meshes.empty() && !std::filesystem::is_directory(mesh_dir)) {
     throw InputError("--real-meshes: '" + a.real_meshes + "' is not a directory");
+  }
+  if (!a.bag.empty()) {  // refused before simulating, not after
+    require_bag_support();
+    if (std::filesystem::exists(a.bag) && !a.overwrite)
+      throw InputError("--bag: '" + a.bag + "' exists (--overwrite replaces it)");
   }
   AppConfig base;
   base.simulation = sim::scenario_config(a.scenario, mesh_dir);
@@ -49,6 +57,10 @@ int run_simulate(const SimulateArgs& a) {
                      {"drone_points", s.drone_points}, {"drone_images", s.drone_images},
                      {"timings_s", {{"site", s.seconds_site}, {"lidar", s.seconds_lidar}, {"write", s.seconds_write},
                                     {"drone", s.seconds_drone}, {"total", s.seconds_total}}}};
+  if (!a.bag.empty()) {
+    spdlog::info("simulate: writing the rosbag {}", a.bag);
+    out["bag"] = {{"file", a.bag}, {"messages", write_bag(io::open_run_directory(a.out), a.bag, cfg.bag)}};
+  }
   std::cout << out.dump(2) << std::endl;
   spdlog::info("simulate: {} sweeps, {} points in {:.1f} s (LiDAR ray casting {:.1f} s, drone {:.1f} s)", s.sweeps,
                s.points, s.seconds_total, s.seconds_lidar, s.seconds_drone);
@@ -68,6 +80,7 @@ void add_simulate_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--seed", args->seed, "seed (same seed, same files)")->capture_default_str();
   cmd->add_option("--duration", args->duration, "simulated time [s]")->capture_default_str()->check(CLI::Range(0.2, 3600.0));
   cmd->add_option("--out", args->out, "run directory to write")->required();
+  cmd->add_option("--bag", args->bag, "also write the run as a rosbag, as a real machine records it (docs/ros.md)");
   cmd->add_option("--real-meshes", args->real_meshes, "directory of real scanned stone meshes (PLY)");
   cmd->add_flag("--overwrite", args->overwrite, "replace an existing run directory");
   cmd->add_flag("--no-drone", args->no_drone, "skip the drone survey");
