@@ -121,6 +121,14 @@ RawCloud read_pcd(std::string_view bytes, const path& file);
 RawCloud read_text(std::string_view bytes, const path& file);
 RawCloud read_kitti(std::string_view bytes, const path& file);
 RawCloud read_vtk(std::string_view bytes, const path& file);
+/// A NumPy .npy header (versions 1-3, C order only; throws InputError otherwise): the dtype
+/// string (e.g. "<f4"), the shape, and where the data starts.
+struct NpyHeader {
+  std::string descr;
+  std::vector<std::size_t> shape;
+  std::size_t data_start = 0;
+};
+NpyHeader parse_npy_header(std::string_view bytes, const path& file);
 RawCloud read_npy(std::string_view bytes, const path& file);
 void write_text(const path& file, const PointCloud& cloud, char separator);
 

@@ -186,26 +186,9 @@ void write_npy_int32(const std::filesystem::path& file, const std::vector<std::i
 
 std::vector<std::int32_t> read_npy_int32(const std::filesystem::path& file) {
   const std::string bytes = detail::read_file(file);
-  if (bytes.size() < 10 || bytes.compare(0, kNpyMagicSize, std::string(kNpyMagic, kNpyMagicSize)) != 0) {
-    detail::fail(file, "not a .npy file");
-  }
-  const auto major = static_cast<unsigned char>(bytes[6]);
-  std::size_t header_len = 0, start = 0;
-  if (major == 1) {
-    header_len = static_cast<unsigned char>(bytes[8]) | (static_cast<std::size_t>(static_cast<unsigned char>(bytes[9])) << 8);
-    start = 10;
-  } else {
-    detail::fail(file, ".npy version " + std::to_string(major) + " not supported (1.0 only)");
-  }
-  if (bytes.size() < start + header_len) detail::fail(file, "truncated .npy header");
-  const std::string header = bytes.substr(start, header_len);
-  if (header.find("'<i4'") == std::string::npos || header.find("'fortran_order': False") == std::string::npos) {
-    detail::fail(file, "expected a little-endian int32 C-order array ('<i4')");
-  }
-  const auto open = header.find("'shape': (");
-  if (open == std::string::npos) detail::fail(file, "no shape in the .npy header");
-  const std::size_t count = std::strtoull(header.c_str() + open + 10, nullptr, 10);
-  const std::size_t data = start + header_len;
+  const detail::NpyHeader h = detail::parse_npy_header(bytes, file);
+  if (h.descr != "<i4" || h.shape.size() != 1) detail::fail(file, "expected a 1-D little-endian int32 array ('<i4')");
+  const std::size_t count = h.shape[0], data = h.data_start;
   if (bytes.size() != data + 4 * count) detail::fail_truncated(file, count, (bytes.size() - data) / 4, "labels");
   std::vector<std::int32_t> values(count);
   for (std::size_t i = 0; i < count; ++i) {

@@ -171,9 +171,7 @@ std::vector<std::size_t> parse_shape(std::string_view value, const path& file) {
   return shape;
 }
 
-Scalar npy_type(std::string_view value, const path& file) {
-  const auto quote = value.empty() ? '\'' : value.front();
-  const auto descr = value.substr(1, value.find(quote, 1) - 1);
+Scalar npy_type(std::string_view descr, const path& file) {
   if (descr == "<f8") return Scalar::Float64;
   if (descr == "<f4") return Scalar::Float32;
   fail(file, "unsupported NumPy dtype '" + std::string(descr) +
@@ -252,7 +250,7 @@ RawCloud read_vtk(std::string_view bytes, const path& file) {
   return raw_from_columns({"x", "y", "z"}, values.data(), n, file);
 }
 
-RawCloud read_npy(std::string_view bytes, const path& file) {
+NpyHeader parse_npy_header(std::string_view bytes, const path& file) {
   if (!bytes.starts_with(kNpyMagic) || bytes.size() < kNpyLengthOffset + kNpyV1LengthBytes)
     fail(file, "not a NumPy .npy file (bad magic)");
   const int major = static_cast<unsigned char>(bytes[kNpyVersionOffset]);
@@ -262,14 +260,24 @@ RawCloud read_npy(std::string_view bytes, const path& file) {
   double length = 0;
   decode_column(bytes.data() + kNpyLengthOffset, 0, 1, major == 1 ? Scalar::UInt16 : Scalar::UInt32,
                 !kHostLittleEndian, &length);
-  const auto data_start = kNpyLengthOffset + length_bytes + static_cast<std::size_t>(length);
-  if (bytes.size() < data_start) fail(file, "truncated .npy header");
+  NpyHeader h;
+  h.data_start = kNpyLengthOffset + length_bytes + static_cast<std::size_t>(length);
+  if (bytes.size() < h.data_start) fail(file, "truncated .npy header");
   const auto dict = bytes.substr(kNpyLengthOffset + length_bytes, static_cast<std::size_t>(length));
-
-  const auto type = npy_type(dict_value(dict, "descr", file), file);
+  const auto value = dict_value(dict, "descr", file);
+  const auto quote = value.empty() ? '\'' : value.front();
+  h.descr = std::string(value.substr(1, value.find(quote, 1) - 1));
   if (!dict_value(dict, "fortran_order", file).starts_with("False"))
     fail(file, "Fortran-ordered .npy arrays are not supported");
-  const auto shape = parse_shape(dict_value(dict, "shape", file), file);
+  h.shape = parse_shape(dict_value(dict, "shape", file), file);
+  return h;
+}
+
+RawCloud read_npy(std::string_view bytes, const path& file) {
+  const NpyHeader h = parse_npy_header(bytes, file);
+  const auto type = npy_type(h.descr, file);
+  const auto& shape = h.shape;
+  const auto data_start = h.data_start;
   if (shape.size() != 2 || shape[1] < kMinColumns)
     fail(file, "NumPy array must have shape (N, C) with C >= 3");
   const auto [n, columns] = std::pair{shape[0], shape[1]};
