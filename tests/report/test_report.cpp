@@ -95,6 +95,7 @@ eval::ExperimentResult small_experiment() {
   }
   r.scene.drone = ground;
   r.scene.drone_points = ground.size();
+  r.scene.voxel = 0.08;
   r.scene.trajectory = {{0.0, 0.01, 0.1}, {10.0, 0.02, 0.2}};
   eval::GraspRecord g{.round = 1, .stone = 0, .attempt = 1, .object = 3, .success = true};
   g.T_map_gripper.translation() = Vec3d(0.0, 0.0, 0.4);
@@ -127,6 +128,7 @@ TEST(Report, WritesEveryFigureAndOpensInChromium) {
   }
   EXPECT_EQ(count(html, "<svg "), 8u);  // every SVG figure inlined
   EXPECT_EQ(count(html, "data:image/png;base64,"), 1u);
+  EXPECT_NE(html.find("Clouds thinned to 8 cm voxels."), std::string::npos);
   EXPECT_EQ(html.find("http://", html.find("<script")), html.find("http://www.w3.org/2000/svg", html.find("<script")))
       << "no network reference besides SVG's namespace";
   test::expect_report_opens(files.html, dir / "screenshot.png");

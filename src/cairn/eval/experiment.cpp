@@ -490,13 +490,7 @@ void Experiment::capture_trajectory() {
   const std::vector<StampedPose> est = m.mapper().trajectory();
   const std::vector<StampedPose>& truth = m.state().truth;
   out.scene.trajectory_error = trajectory_error(est, truth);
-  if (truth.empty()) return;
-  for (const StampedPose& p : est) {
-    const Isometry3d T = interpolate_pose(truth, p.time);
-    out.scene.trajectory.push_back({.time = p.time,
-                                    .position_error_m = (p.pose.translation() - T.translation()).norm(),
-                                    .rotation_error_deg = rotation_angle(T.linear().transpose() * p.pose.linear()) * kDegPerRad});
-  }
+  out.scene.trajectory = pose_errors(est, truth);
 }
 
 void Experiment::finish(double total_ms) {

@@ -186,9 +186,7 @@ struct SceneSnapshot {
   std::vector<Vec3d> true_centroids;                         // per stone (truth, map frame: scoring only)
 };
 
-struct TrajectorySample {
-  double time = 0.0, position_error_m = 0.0, rotation_error_deg = 0.0;
-};
+using TrajectorySample = PoseError;  // the mapper's pose vs the truth
 
 /// What the report draws besides the records: the scene at instants, the registered drone cloud,
 /// the mapped trajectory against the truth, the gripper.

@@ -484,17 +484,28 @@ MapRunResult map_run(const io::RunDirectory& run, const MappingConfig& config, c
   return map_sweeps(inputs, files, config, progress);
 }
 
-TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate, const std::vector<StampedPose>& truth) {
-  TrajectoryError e;
-  if (estimate.empty() || truth.empty()) return e;
-  double sum = 0, sum_rot = 0;
+std::vector<PoseError> pose_errors(const std::vector<StampedPose>& estimate, const std::vector<StampedPose>& truth) {
+  std::vector<PoseError> out;
+  if (estimate.empty() || truth.empty()) return out;
+  out.reserve(estimate.size());
   for (const StampedPose& p : estimate) {
     const Eigen::Isometry3d T = interpolate_pose(truth, p.time);
-    const double d = (p.pose.translation() - T.translation()).norm();
-    const double a = rotation_angle(T.linear().transpose() * p.pose.linear()) * 180.0 / std::numbers::pi;
-    sum += d * d;
-    sum_rot += a * a;
-    e.ate_max = std::max(e.ate_max, d);
+    out.push_back({.time = p.time,
+                   .position_error_m = (p.pose.translation() - T.translation()).norm(),
+                   .rotation_error_deg = rotation_angle(T.linear().transpose() * p.pose.linear()) * 180.0 / std::numbers::pi});
+  }
+  return out;
+}
+
+TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate, const std::vector<StampedPose>& truth) {
+  TrajectoryError e;
+  const std::vector<PoseError> errors = pose_errors(estimate, truth);
+  if (errors.empty()) return e;
+  double sum = 0, sum_rot = 0;
+  for (const PoseError& pe : errors) {
+    sum += pe.position_error_m * pe.position_error_m;
+    sum_rot += pe.rotation_error_deg * pe.rotation_error_deg;
+    e.ate_max = std::max(e.ate_max, pe.position_error_m);
     ++e.num;
   }
   e.ate_rmse = std::sqrt(sum / e.num);

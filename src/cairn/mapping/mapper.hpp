@@ -234,6 +234,15 @@ struct TrajectoryError {
 };
 [[nodiscard]] TrajectoryError trajectory_error(const std::vector<StampedPose>& estimate,
                                                const std::vector<StampedPose>& truth);
+/// One pose of an estimate against the truth interpolated at its time.
+struct PoseError {
+  double time = 0.0;                // [s]
+  double position_error_m = 0.0;    // [m]
+  double rotation_error_deg = 0.0;  // [deg]
+};
+/// The error of every pose of `estimate` (empty when either is empty); trajectory_error's terms.
+[[nodiscard]] std::vector<PoseError> pose_errors(const std::vector<StampedPose>& estimate,
+                                                 const std::vector<StampedPose>& truth);
 
 /// The truth side of map_offset_at_objects, prepared once per truth cloud (a labelled dense
 /// snapshot of the true surfaces: label >= 0 object, else terrain): ICP target with normals over
