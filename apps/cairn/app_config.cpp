@@ -16,9 +16,7 @@ void CommonOptions::add_to(CLI::App& cmd) {
 
 AppConfig CommonOptions::load(AppConfig cfg) const {
   set_log_level(log_level);
-  if (!config_file.empty()) config::load_yaml_file(cfg, config_file);
-  for (const auto& o : overrides) config::apply_override(cfg, o);
-  return cfg;
+  return load_app_config(std::move(cfg), config_file, overrides);
 }
 
 void write_out_file(const std::string& path, const std::string& text) {
