@@ -18,17 +18,19 @@ PACKAGES=(
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev zlib1g-dev
   libembree-dev libmujoco-dev libceres-dev libsqlite3-dev
   librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev libstd-msgs-dev
-  pluginlib-dev librcpputils-dev libament-index-cpp-dev
+  pluginlib-dev librcpputils-dev libament-index-cpp-dev libroscpp-dev libstd-srvs-dev
 )
 # npm from Debian unless a node.js with npm is installed already (e.g. NodeSource's, which
 # conflicts with Debian's npm package).
 command -v npm >/dev/null || PACKAGES+=(npm)
 # tests and benchmarks: gtest gmock benchmark; the report opened in headless chromium;
 # peers (tests/bench only, never linked by the library): pcl, open3d; Debian's `rosbag info` and
-# `rosbag check` read the bags cairn writes (python3-rosbag and the messages' Python modules)
+# `rosbag check` read the bags cairn writes (python3-rosbag and the messages' Python modules);
+# rostest with its own master plays a bag into cairn_mapper (rostest, roslaunch, rosmaster, rospy)
 if [ "${1:-}" = "--tests" ]; then
   PACKAGES+=(libgtest-dev libgmock-dev libbenchmark-dev chromium libpcl-dev libopen3d-dev python3-rosbag
-             python3-sensor-msgs python3-nav-msgs python3-geometry-msgs python3-tf2-msgs python3-std-msgs)
+             python3-sensor-msgs python3-nav-msgs python3-geometry-msgs python3-tf2-msgs python3-std-msgs
+             python3-rostest python3-roslaunch python3-rosmaster python3-rospy python3-std-srvs)
 fi
 export DEBIAN_FRONTEND=noninteractive
 missing=()

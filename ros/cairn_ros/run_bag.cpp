@@ -6,21 +6,10 @@
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn_ros/bag_file.hpp"
+#include "cairn_ros/convert.hpp"
 
 namespace cairn::bag {
 namespace {
-
-file::Transform to_file(const Eigen::Isometry3d& T) {
-  const Eigen::Quaterniond q(T.linear());
-  return {{T.translation().x(), T.translation().y(), T.translation().z()}, {q.x(), q.y(), q.z(), q.w()}};
-}
-
-Eigen::Isometry3d from_file(const file::Transform& T) {
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.linear() = Eigen::Quaterniond(T.q[3], T.q[0], T.q[1], T.q[2]).normalized().toRotationMatrix();
-  out.translation() = Eigen::Vector3d(T.t[0], T.t[1], T.t[2]);
-  return out;
-}
 
 /// A sweep as the Velodyne driver publishes it: sensor-frame points, per-point time relative to
 /// the stamp (the sweep's start), ring.
@@ -50,15 +39,6 @@ file::Cloud cloud_of(const PointCloud& c, double stamp, const std::string& frame
     if (c.has_colors()) s.rgb.insert(s.rgb.end(), {c.colors[i].r, c.colors[i].g, c.colors[i].b});
   }
   return s;
-}
-
-PointCloud points_of(const file::Cloud& c) {
-  PointCloud out;
-  out.points.reserve(c.xyz.size() / 3);
-  for (std::size_t i = 0; i + 2 < c.xyz.size(); i += 3) out.points.emplace_back(c.xyz[i], c.xyz[i + 1], c.xyz[i + 2]);
-  if (!c.rgb.empty())
-    for (std::size_t i = 0; i + 2 < c.rgb.size(); i += 3) out.colors.push_back({c.rgb[i], c.rgb[i + 1], c.rgb[i + 2]});
-  return out;
 }
 
 double median_spacing(std::vector<double> stamps) {
@@ -153,23 +133,15 @@ BagRun open_run_bag(const std::filesystem::path& bag, const io::BagTopics& topic
 SweepSource bag_sweeps(const BagRun& run, const io::BagTopics& topics) {
   auto reader = std::make_shared<file::Reader>(run.file.string(), std::vector<std::string>{topics.lidar_h, topics.lidar_v},
                                                /*decode_clouds=*/true);
-  return [reader, file = run.file, period = run.sweep_period, lidar_h = topics.lidar_h](RecordedSweep& out) {
+  return [reader, path = run.file, period = run.sweep_period, lidar_h = topics.lidar_h](RecordedSweep& out) {
     file::Message m;
     if (!reader->next(m)) return false;
-    std::string what = file.string();  // step by step: GCC 12's -Wrestrict misfires on a + b + c
+    std::string what = path.string();  // step by step: GCC 12's -Wrestrict misfires on a + b + c
     what += ": ";
     what += m.topic;
     if (m.kind != file::Message::Kind::cloud) throw InputError(what + " is not sensor_msgs/PointCloud2");
-    if (m.cloud.time.size() * 3 != m.cloud.xyz.size() || m.cloud.ring.size() * 3 != m.cloud.xyz.size())
-      throw InputError(what + ": a sweep needs per-point 'time' (float32) and 'ring' (uint16) fields");
-    out.sensor = m.topic == lidar_h ? "H" : "V";
-    out.cloud = points_of(m.cloud);
-    out.cloud.times.resize(m.cloud.time.size());
-    ScalarField ring{"ring", std::vector<float>(m.cloud.ring.begin(), m.cloud.ring.end())};
-    for (std::size_t i = 0; i < m.cloud.time.size(); ++i) out.cloud.times[i] = m.stamp + double(m.cloud.time[i]);
-    out.cloud.fields.push_back(std::move(ring));
-    out.t_start = m.stamp;
-    out.t_end = m.stamp + period.at(out.sensor);
+    const std::string sensor = m.topic == lidar_h ? "H" : "V";
+    out = sweep_from(m.cloud, sensor, period.at(sensor), what);
     return true;
   };
 }

@@ -1,0 +1,51 @@
+#pragma once
+// The plain data of bag_file.hpp <-> cairn's types (C++20 side of the ROS layer).
+#include <Eigen/Geometry>
+#include <string>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/point_cloud.hpp"
+#include "cairn/mapping/mapper.hpp"
+#include "cairn_ros/bag_file.hpp"
+
+namespace cairn::bag {
+
+inline file::Transform to_file(const Eigen::Isometry3d& T) {
+  const Eigen::Quaterniond q(T.linear());
+  return {{T.translation().x(), T.translation().y(), T.translation().z()}, {q.x(), q.y(), q.z(), q.w()}};
+}
+
+inline Eigen::Isometry3d from_file(const file::Transform& T) {
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = Eigen::Quaterniond(T.q[3], T.q[0], T.q[1], T.q[2]).normalized().toRotationMatrix();
+  out.translation() = Eigen::Vector3d(T.t[0], T.t[1], T.t[2]);
+  return out;
+}
+
+/// x y z (and colours) of a decoded cloud.
+inline PointCloud points_of(const file::Cloud& c) {
+  PointCloud out;
+  out.points.reserve(c.xyz.size() / 3);
+  for (std::size_t i = 0; i + 2 < c.xyz.size(); i += 3) out.points.emplace_back(c.xyz[i], c.xyz[i + 1], c.xyz[i + 2]);
+  if (!c.rgb.empty())
+    for (std::size_t i = 0; i + 2 < c.rgb.size(); i += 3) out.colors.push_back({c.rgb[i], c.rgb[i + 1], c.rgb[i + 2]});
+  return out;
+}
+
+/// A decoded Velodyne-style sweep as the Mapper takes it: absolute per-point times, the ring
+/// field, t_end = stamp + `period`. Throws InputError (naming `what`) without time and ring.
+inline RecordedSweep sweep_from(const file::Cloud& c, const std::string& sensor, double period, const std::string& what) {
+  if (c.time.size() * 3 != c.xyz.size() || c.ring.size() * 3 != c.xyz.size())
+    throw InputError(what + ": a sweep needs per-point 'time' (float32) and 'ring' (uint16) fields");
+  RecordedSweep out;
+  out.sensor = sensor;
+  out.cloud = points_of(c);
+  out.cloud.times.resize(c.time.size());
+  for (std::size_t i = 0; i < c.time.size(); ++i) out.cloud.times[i] = c.stamp + double(c.time[i]);
+  out.cloud.fields.push_back({"ring", std::vector<float>(c.ring.begin(), c.ring.end())});
+  out.t_start = c.stamp;
+  out.t_end = c.stamp + period;
+  return out;
+}
+
+}  // namespace cairn::bag
