@@ -41,10 +41,21 @@ auto input_errors(const std::string& path, F&& f) {
 struct Writer::Impl {
   std::string path;
   ::rosbag::Bag bag;
+  /// `latched`: the connection says latching=1, so that `rosbag play` latches the topic (a
+  /// late subscriber still gets the robot model and the extrinsics).
   template <class M>
-  void write(const std::string& topic, double t, const M& msg) {
+  void write(const std::string& topic, double t, const M& msg, bool latched = false) {
+    boost::shared_ptr<::ros::M_string> header;
+    if (latched) {  // a given header is stored as is: the type fields too
+      header = boost::make_shared<::ros::M_string>();
+      (*header)["type"] = ::ros::message_traits::datatype<M>();
+      (*header)["md5sum"] = ::ros::message_traits::md5sum<M>();
+      (*header)["message_definition"] = ::ros::message_traits::definition<M>();
+      (*header)["callerid"] = "/cairn";
+      (*header)["latching"] = "1";
+    }
     input_errors(path, [&] {
-      bag.write(topic, record_time(t), msg);
+      bag.write(topic, record_time(t), msg, header);
       return 0;
     });
   }
@@ -61,14 +72,15 @@ Writer::Writer(const std::string& path) : impl_(std::make_unique<Impl>()) {
 
 Writer::~Writer() = default;
 
-void Writer::text(const std::string& topic, double t, const std::string& text) {
+void Writer::text(const std::string& topic, double t, const std::string& text, bool latched) {
   std_msgs::String m;
   m.data = text;
-  impl_->write(topic, t, m);
+  impl_->write(topic, t, m, latched);
   ++messages_[topic];
 }
 
-void Writer::transforms(const std::string& topic, double t, const std::vector<FrameTransform>& transforms) {
+void Writer::transforms(const std::string& topic, double t, const std::vector<FrameTransform>& transforms,
+                        bool latched) {
   tf2_msgs::TFMessage m;
   for (const FrameTransform& f : transforms) {
     geometry_msgs::TransformStamped ts;
@@ -78,7 +90,7 @@ void Writer::transforms(const std::string& topic, double t, const std::vector<Fr
     ts.transform = to_msg(f.T);
     m.transforms.push_back(ts);
   }
-  impl_->write(topic, t, m);
+  impl_->write(topic, t, m, latched);
   ++messages_[topic];
 }
 

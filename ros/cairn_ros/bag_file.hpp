@@ -56,8 +56,10 @@ class Writer {
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
 
-  void text(const std::string& topic, double t, const std::string& text);
-  void transforms(const std::string& topic, double t, const std::vector<FrameTransform>& transforms);
+  /// `latched`: recorded as a latched topic (rosbag play re-latches it).
+  void text(const std::string& topic, double t, const std::string& text, bool latched = false);
+  void transforms(const std::string& topic, double t, const std::vector<FrameTransform>& transforms,
+                  bool latched = false);
   void odometry(const std::string& topic, double t, const std::string& frame, const std::string& child,
                 const Transform& pose);
   void joints(const std::string& topic, double t, const std::vector<std::string>& names,

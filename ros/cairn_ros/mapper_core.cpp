@@ -48,10 +48,11 @@ struct MapperCore::Impl {
     start();
     if (!mapper) return;
     while (!waiting.empty() && (all || covered(waiting.front()))) {
-      const RecordedSweep& s = waiting.front();
-      if (!T_cabin_sensor.contains(s.sensor)) throw InputError("cairn_mapper: no extrinsic for LiDAR " + s.sensor);
+      const RecordedSweep s = std::move(waiting.front());
+      waiting.pop_front();  // before mapping: a bad sweep is reported once, never blocks the queue
+      if (!T_cabin_sensor.contains(s.sensor))
+        throw InputError("cairn_mapper: a " + s.sensor + " sweep but no extrinsic of that LiDAR when mapping started");
       mapper->add_sweep(s.sensor, s.cloud, s.t_start, s.t_end);
-      waiting.pop_front();
       ++status.sweeps_mapped;
     }
   }
@@ -115,6 +116,7 @@ void MapperCore::add_sweep(const std::string& topic, const file::Cloud& sweep) {
   Impl& s = *impl_;
   const io::BagTopics& t = s.config.bag;
   if (topic != t.lidar_h && topic != t.lidar_v) throw InputError("cairn_mapper: " + topic + " is not a LiDAR topic");
+  if (s.status.finished) throw InputError("cairn_mapper: a sweep after ~finish is not mapped");
   s.waiting.push_back(sweep_from(sweep, topic == t.lidar_h ? "H" : "V", s.sweep_period, "cairn_mapper: " + topic));
   ++s.status.sweeps_received;
   s.drain(false);
@@ -141,8 +143,9 @@ MapperStatus MapperCore::status() const {
 file::Cloud MapperCore::map() const {
   const std::lock_guard lock(impl_->mutex);
   file::Cloud out;
-  out.frame = impl_->config.bag.world_frame;
   if (!impl_->mapper) return out;
+  const std::vector<StampedPose> nodes = impl_->mapper->trajectory();
+  if (!nodes.empty()) out.stamp = nodes.back().time;  // the run's clock: the newest node
   const PointCloud m = impl_->mapper->map();
   out.xyz.reserve(3 * m.size());
   for (std::size_t i = 0; i < m.size(); ++i) {

@@ -32,18 +32,21 @@ class MapperCore {
   [[nodiscard]] const io::BagTopics& topics() const;
 
   void set_robot_model(const std::string& robot_json);
-  /// tf cabin -> child; the LiDARs' frames (bag.lidar_h_frame / lidar_v_frame) are kept.
+  /// tf cabin -> child; the LiDARs' frames (bag.lidar_h_frame / lidar_v_frame) are kept. Mapping
+  /// starts with the extrinsics known then (a sweep of a LiDAR without one is an error).
   void set_transform(const std::string& parent, const std::string& child, const file::Transform& T);
   void add_state(double t, const file::Transform& T_world_cabin);
   void add_joints(double t, const std::vector<std::string>& names, const std::vector<double>& positions);
   /// A sweep of the LiDAR on `topic`: queued until the state estimate and joint states cover it
-  /// (the Mapper needs them first), then mapped. Throws InputError on a malformed sweep.
+  /// (the Mapper needs them first), then mapped. Throws InputError on a malformed sweep or one
+  /// after finish(); a sweep that fails is dropped, the queue goes on.
   void add_sweep(const std::string& topic, const file::Cloud& sweep);
   /// Maps what is still queued, full optimisation, the map rebuilt from the final poses.
   void finish();
 
   [[nodiscard]] MapperStatus status() const;
-  /// The map (world frame); empty before the first mapped sweep.
+  /// The map in the optimised (map) frame, stamped with the newest node's time; empty before the
+  /// first mapped sweep. The frame name is the node's (~map_frame).
   [[nodiscard]] file::Cloud map() const;
   /// Optimised T_world_cabin per node: (time, pose).
   [[nodiscard]] std::vector<std::pair<double, file::Transform>> trajectory() const;

@@ -55,10 +55,10 @@ double median_spacing(std::vector<double> stamps) {
 BagWriteSummary write_run_bag(const io::RunDirectory& run, const std::filesystem::path& bag, const io::BagTopics& topics) {
   file::Writer w(bag.string());
   const double t0 = run.state_estimate.front().time;
-  w.text(topics.robot_model, t0, to_json(run.robot).dump());
+  w.text(topics.robot_model, t0, to_json(run.robot).dump(), /*latched=*/true);
   std::vector<file::FrameTransform> statics;
   for (const auto& [sensor, T] : run.T_cabin_sensor) statics.push_back({topics.cabin_frame, topics.lidar_frame(sensor), to_file(T)});
-  w.transforms("/tf_static", t0, statics);
+  w.transforms("/tf_static", t0, statics, /*latched=*/true);
   for (const StampedPose& p : run.state_estimate) {
     w.odometry(topics.odometry, p.time, topics.world_frame, topics.cabin_frame, to_file(p.pose));
     w.transforms("/tf", p.time, {{topics.world_frame, topics.cabin_frame, to_file(p.pose)}});

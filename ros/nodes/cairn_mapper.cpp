@@ -62,7 +62,8 @@ class MapperNode {
     status_pub_ = pnh.advertise<std_msgs::String>("status", 10, /*latch=*/true);
     tf_pub_ = nh.advertise<tf2_msgs::TFMessage>("/tf", 100);
     finish_ = pnh.advertiseService("finish", &MapperNode::finish, this);
-    timer_ = nh.createWallTimer(ros::WallDuration(1.0 / map_rate), [this](const ros::WallTimerEvent&) { publish(); });
+    timer_ = nh.createWallTimer(ros::WallDuration(1.0 / map_rate),
+                                [this](const ros::WallTimerEvent&) { guarded([&] { publish(); }); });
   }
 
  private:
@@ -85,11 +86,14 @@ class MapperNode {
     if (s.sweeps_mapped != published_sweeps_ || s.finished != published_finished_) {
       published_sweeps_ = s.sweeps_mapped;
       published_finished_ = s.finished;
-      sensor_msgs::PointCloud2 map = file::to_msg(core_.map());
-      map.header.stamp = ros::Time::now();
+      // The map and the optimised poses are in the map frame, stamped on the run's clock (the
+      // newest node); tf map -> world carries the correction of the state estimate.
+      file::Cloud cloud = core_.map();
+      cloud.frame = map_frame_;
+      sensor_msgs::PointCloud2 map = file::to_msg(cloud);
       map_pub_.publish(map);
       nav_msgs::Path path;
-      path.header.frame_id = core_.topics().world_frame;
+      path.header.frame_id = map_frame_;
       path.header.stamp = map.header.stamp;
       for (const auto& [t, T] : core_.trajectory()) {
         geometry_msgs::PoseStamped p;

@@ -20,7 +20,7 @@ echo "bag: $sweeps sweeps; cairn map --bag: $nodes nodes, $points map points"
 export ROS_PACKAGE_PATH="$(dirname "$pkg_dir"):/usr/share"
 export ROS_HOME="$work/ros_home"
 export ROS_LOG_DIR="$work/ros_log"
-export ROS_IP=127.0.0.1  # rostest starts its own master (port 22422), on the loopback interface
+export ROS_IP=127.0.0.1  # rostest starts its own master (a free port), on the loopback interface
 # Not --text: with it rostest exits 0 whatever the result. The nodes' output is in the logs.
 if ! rostest cairn_ros mapper.test bag:="$work/run.bag" sweeps:="$sweeps" nodes:="$nodes" map_points:="$points"; then
   echo "rostest failed; the nodes' logs:" >&2
