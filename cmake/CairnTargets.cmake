@@ -22,3 +22,13 @@ function(cairn_add_library name)
     target_link_options(${name} INTERFACE -fsanitize=address,undefined)
   endif()
 endfunction()
+
+# In CI (environment CI set and not "false", as .ci/run runs) a missing optional part (a peer, ROS)
+# fails the configuration; on a developer's machine it is a warning. Sets VAR to the message mode.
+function(cairn_missing_level var)
+  if(DEFINED ENV{CI} AND NOT "$ENV{CI}" STREQUAL "" AND NOT "$ENV{CI}" STREQUAL "false")
+    set(${var} FATAL_ERROR PARENT_SCOPE)
+  else()
+    set(${var} WARNING PARENT_SCOPE)
+  endif()
+endfunction()
