@@ -4,7 +4,6 @@
 #include "cairn_ros/run_bag.hpp"
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
@@ -13,6 +12,7 @@
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/kdtree.hpp"
+#include "support/process.hpp"
 #include "support/shared_runs.hpp"
 
 namespace cairn::bag {
@@ -36,16 +36,6 @@ const Written& written() {
     return x;
   }();
   return w;
-}
-
-std::string shell(const std::string& cmd, int& code) {
-  std::string out;
-  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
-  std::array<char, 4096> buf{};
-  while (std::fgets(buf.data(), int(buf.size()), pipe)) out += buf.data();
-  const int status = pclose(pipe);
-  code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return out;
 }
 
 TEST(RunBag, HoldsWhatTheRunDirectoryHolds) {
@@ -96,9 +86,9 @@ TEST(RunBag, HoldsWhatTheRunDirectoryHolds) {
 // needs no migration.
 TEST(RunBag, RosbagInfoAndCheckAcceptIt) {
   const Written& w = written();
-  int code = 0;
-  const std::string info = shell("rosbag info --yaml " + w.bag.string(), code);
-  ASSERT_EQ(code, 0) << info;
+  const test::CommandResult info_run = test::run_command("rosbag info --yaml " + w.bag.string() + " 2>&1");
+  const std::string& info = info_run.out;
+  ASSERT_EQ(info_run.code, 0) << info;
   const io::BagTopics t;
   for (const auto& [topic, type] : std::vector<std::pair<std::string, std::string>>{
            {t.lidar_h, "sensor_msgs/PointCloud2"}, {t.lidar_v, "sensor_msgs/PointCloud2"},
@@ -109,8 +99,9 @@ TEST(RunBag, RosbagInfoAndCheckAcceptIt) {
                              std::to_string(w.summary.messages.at(topic));
     EXPECT_NE(info.find(line), std::string::npos) << line << "\n" << info;
   }
-  const std::string check = shell("rosbag check " + w.bag.string(), code);
-  EXPECT_EQ(code, 0) << check;
+  const test::CommandResult check_run = test::run_command("rosbag check " + w.bag.string() + " 2>&1");
+  const std::string& check = check_run.out;
+  EXPECT_EQ(check_run.code, 0) << check;
   EXPECT_NE(check.find("Bag file does not need any migrations"), std::string::npos) << check;
 }
 

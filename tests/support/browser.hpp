@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "support/process.hpp"
+
 namespace cairn::test {
 
 inline bool in_ci() {
@@ -26,16 +28,6 @@ inline std::optional<std::string> find_chromium() {
   for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome"})
     if (std::filesystem::exists(p)) return std::string(p);
   return std::nullopt;
-}
-
-inline std::string run_capture(const std::string& command) {
-  std::string out;
-  if (FILE* f = ::popen(command.c_str(), "r")) {
-    std::array<char, 4096> buf{};
-    for (std::size_t n; (n = std::fread(buf.data(), 1, buf.size(), f)) > 0;) out.append(buf.data(), n);
-    ::pclose(f);
-  }
-  return out;
 }
 
 inline std::string chromium_command(const std::string& exe, const std::string& action, const std::filesystem::path& page) {
@@ -123,14 +115,14 @@ inline PageResult open_in_chromium(const std::filesystem::path& page, const std:
   PageResult r;
   const auto exe = find_chromium();
   if (!exe) return r;
-  const std::string dom = run_capture(chromium_command(*exe, "--dump-dom", page));
+  const std::string dom = run_command(chromium_command(*exe, "--dump-dom", page)).out;
   r.opened = dom.find("</html>") != std::string::npos;
   r.viewer = element_text(dom, "data-viewer=\"");
   if (const auto q = r.viewer.find('"'); q != std::string::npos) r.viewer.resize(q);
   r.status = element_text(dom, "<div id=\"status\">");
   r.errors = element_text(dom, "<pre id=\"errors\">");
   std::filesystem::remove(screenshot);
-  (void)run_capture(chromium_command(*exe, "--screenshot='" + screenshot.string() + "'", page));
+  (void)run_command(chromium_command(*exe, "--screenshot='" + screenshot.string() + "'", page));
   r.screenshot = read_png(screenshot);
   return r;
 }
