@@ -13,7 +13,7 @@
 #include "cairn/core/io/io.hpp"
 #include "cairn/eval/grasp_trials.hpp"
 #include "cairn/grasp/output.hpp"
-#include "cairn/objects/object_db.hpp"
+#include "cairn/objects/pipeline.hpp"
 #include "commands.hpp"
 
 namespace cairn::app {
@@ -25,22 +25,13 @@ struct GraspArgs {
   std::optional<std::int64_t> object;
 };
 
-/// The object to grasp (Sec. 5.1): the given cloud, the database's object of that id, or the
-/// database's largest object (most points).
+/// The object to grasp: the given cloud, or the database's (objects/pipeline.hpp, Sec. 5.1).
 PointCloud object_model(const GraspArgs& a) {
   if (!a.object_cloud.empty()) return io::read_cloud(a.object_cloud).cloud;
   const ObjectDatabase db(a.db, ObjectDatabase::Mode::read_only);
-  if (a.object) {
-    const std::optional<ObjectRecord> r = db.object(*a.object);
-    if (!r) throw InputError(a.db + ": no object " + std::to_string(*a.object));
-    return r->cloud;
-  }
-  std::optional<ObjectRecord> largest;
-  for (ObjectRecord& r : db.objects())
-    if (r.status != ObjectStatus::lost && (!largest || r.num_points > largest->num_points)) largest = std::move(r);
-  if (!largest) throw InputError(a.db + ": holds no object to grasp");
-  spdlog::info("grasp: the largest object, {} ({} points)", largest->id, largest->num_points);
-  return largest->cloud;
+  ObjectRecord r = object_to_grasp(db, a.object);
+  spdlog::info("grasp: object {} ({} points)", r.id, r.num_points);
+  return std::move(r.cloud);
 }
 
 int run_grasp(const GraspArgs& a) {

@@ -136,11 +136,8 @@ void add_track(CLI::App& parent, std::function<int()>& run) {
 void add_objects_command(CLI::App& app, std::function<int()>& run) {
   auto* cmd = app.add_subcommand("objects", "The object database (paper Sec. 4.5)");
   cmd->require_subcommand(1);
-  add_reader(*cmd, run, "list", "List the objects", false, [](const ObjectDatabase& db, const Args&) {
-    nlohmann::json a = nlohmann::json::array();
-    for (const ObjectRecord& r : db.objects(false)) a.push_back(object_summary_json(r));
-    return nlohmann::json{{"objects", a}};
-  });
+  add_reader(*cmd, run, "list", "List the objects", false,
+             [](const ObjectDatabase& db, const Args&) { return objects_list_json(db); });
   add_reader(*cmd, run, "show", "One object", true, [](const ObjectDatabase& db, const Args& a) {
     return object_json(find_object(db, a.id));
   });

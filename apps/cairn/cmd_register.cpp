@@ -8,8 +8,7 @@
 
 #include "app_config.hpp"
 #include "cairn/core/io/io.hpp"
-#include "cairn/registration/global_registration.hpp"
-#include "cairn/registration/scale_recovery.hpp"
+#include "cairn/registration/drone_registration.hpp"
 #include "commands.hpp"
 
 namespace cairn::app {
@@ -21,14 +20,6 @@ struct RegisterArgs {
   bool gravity_aligned = false;
 };
 
-nlohmann::json timings_json(const Timings& t, double scale_ms) {
-  nlohmann::json j;
-  for (const auto& [stage, ms] : t.stages) j[stage] = ms;
-  if (scale_ms > 0) j["scale_recovery"] = scale_ms;
-  j["total"] = t.total() + scale_ms;
-  return j;
-}
-
 int run_register(const RegisterArgs& a) {
   AppConfig cfg = a.common.load();
   if (a.gravity_aligned) cfg.registration.gravity_aligned = true;
@@ -38,43 +29,13 @@ int run_register(const RegisterArgs& a) {
   const PointCloud target = io::load_cloud(a.target);
   spdlog::info("register: source {} ({} points) -> target {} ({} points)", a.source, source.size(), a.target,
                target.size());
-  nlohmann::json j;
-  Similarity T_metric_sfm;
-  double scale_ms = 0.0;
-  if (!a.sfm.empty()) {
-    Stopwatch sw;
-    const ScaleRecoveryResult s =
-        recover_scale(io::read_colmap_text(a.sfm), io::read_tum_trajectory(a.metric), cfg.scale);
-    T_metric_sfm = s.T_metric_sfm;
-    transform_cloud(source, T_metric_sfm);
-    scale_ms = sw.lap_ms();
-    spdlog::info("register: scale recovered from {} cameras: {:.5f} (residual RMS {:.3f} m)", s.cameras,
-                 s.T_metric_sfm.scale, s.rms);
-    j["scale"] = {{"scale", s.T_metric_sfm.scale}, {"cameras", s.cameras}, {"inliers", s.inliers.size()}, {"rms_m", s.rms}};
-  }
-  const GlobalRegistrationResult r = register_global(source, target, cfg.segmentation, cfg.registration);
-  // With scale recovery, the reported transform maps the ORIGINAL source (SfM frame) into the
-  // target: a similarity.
-  const Eigen::Matrix4d T = (Similarity::from_isometry(r.T_target_source) * T_metric_sfm).matrix();
-  j["success"] = r.success;
-  j["T_target_source"] = matrix_to_json(T);
-  j["rmse"] = r.rmse;
-  j["overlap"] = r.overlap;
-  j["matched_segments"] = r.matched_segments.size();
-  j["candidates"] = r.candidates;
-  j["centroid_candidates"] = r.centroid_candidates;
-  j["timings_ms"] = timings_json(r.timings, scale_ms);
-  j["counts"] = {{"source_points", r.source_points},       {"target_points", r.target_points},
-                 {"source_segments", r.source_segments},   {"target_segments", r.target_segments},
-                 {"source_keypoints", r.source_keypoints}, {"target_keypoints", r.target_keypoints},
-                 {"correspondences", r.correspondences}};
-  if (!r.success) j["reason"] = r.reason;
-  nlohmann::json reports = nlohmann::json::array();
-  for (const CandidateReport& c : r.reports)
-    reports.push_back({{"origin", c.origin}, {"votes", c.votes}, {"centroid_inliers", c.centroid_inliers},
-                       {"max_centroid_distance_m", c.max_centroid_distance}, {"refined", c.refined},
-                       {"rmse_m", c.rmse}, {"overlap", c.overlap}, {"accepted", c.accepted}});
-  j["candidate_reports"] = reports;
+  const DroneRegistration d = register_drone(std::move(source), target, a.sfm, a.metric, cfg.segmentation,
+                                             cfg.registration, cfg.scale);
+  const GlobalRegistrationResult& r = d.result;
+  if (d.scale)
+    spdlog::info("register: scale recovered from {} cameras: {:.5f} (residual RMS {:.3f} m)", d.scale->cameras,
+                 d.scale->T_metric_sfm.scale, d.scale->rms);
+  nlohmann::json j = to_json(d);
   if (!a.truth.empty()) {
     std::ifstream in(a.truth);
     if (!in) throw InputError("register: cannot read --truth file '" + a.truth + "'");
@@ -88,11 +49,9 @@ int run_register(const RegisterArgs& a) {
     const nlohmann::json& m = tj.contains("T_target_source") ? tj["T_target_source"]
                               : tj.contains("T_map_drone")   ? tj["T_map_drone"]
                                                              : tj;
-    const Similarity truth = Similarity::from_matrix(matrix_from_json(m));
     // Errors at the target's centre (where the matched segments are), not at the source's origin.
     const Vec3d at = target.origin + centroid(target.points).cast<double>();
-    const RegistrationError e = registration_error(Similarity::from_matrix(T), truth, at);
-    j["error"] = {{"rotation_deg", e.rotation_deg}, {"translation_m", e.translation_m}, {"scale_ratio", e.scale_ratio}};
+    j["error"] = error_json(d, Similarity::from_matrix(matrix_from_json(m)), at);
   }
   if (!a.out.empty()) {
     const std::filesystem::path out(a.out);

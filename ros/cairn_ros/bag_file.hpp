@@ -34,6 +34,15 @@ struct Cloud {
   std::vector<std::uint8_t> rgb;       // empty or 3 per point
 };
 
+/// An edit of the map by another stage (mapping/map_edit.hpp; kind remove_sphere, remove_near or
+/// insert), e.g. a grasped object's points removed (Sec. 4.5).
+struct MapEdit {
+  std::string kind;
+  std::array<double, 3> center{0.0, 0.0, 0.0};
+  double radius = 0.0, distance = 0.0;
+  Cloud points;
+};
+
 /// One message read back; `kind` tells which members hold it.
 struct Message {
   enum class Kind { text, transforms, odometry, joints, cloud };

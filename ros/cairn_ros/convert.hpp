@@ -32,6 +32,38 @@ inline PointCloud points_of(const file::Cloud& c) {
   return out;
 }
 
+/// A cloud as plain data (world coordinates in float32, colours when it has them).
+inline file::Cloud cloud_of(const PointCloud& c, double stamp, const std::string& frame) {
+  file::Cloud s;
+  s.stamp = stamp;
+  s.frame = frame;
+  s.xyz.reserve(3 * c.size());
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const Vec3f p = c.world(i).cast<float>();
+    s.xyz.insert(s.xyz.end(), {p.x(), p.y(), p.z()});
+    if (c.has_colors()) s.rgb.insert(s.rgb.end(), {c.colors[i].r, c.colors[i].g, c.colors[i].b});
+  }
+  return s;
+}
+
+/// Map edits as plain data and back (the objects node publishes them, the mapper applies them).
+inline file::MapEdit to_file(const MapEdit& e, const std::string& frame) {
+  file::MapEdit out{.kind = to_string(e.kind), .center = {e.center.x(), e.center.y(), e.center.z()},
+                    .radius = e.radius, .distance = e.distance, .points = cloud_of(e.points, 0.0, frame)};
+  out.points.rgb.clear();
+  return out;
+}
+inline MapEdit from_file(const file::MapEdit& e) {
+  MapEdit out;
+  out.kind = map_edit_kind_from_string(e.kind);
+  out.center = Vec3d(e.center[0], e.center[1], e.center[2]);
+  out.radius = e.radius;
+  out.distance = e.distance;
+  out.points = points_of(e.points);
+  out.validate();
+  return out;
+}
+
 /// A decoded Velodyne-style sweep as the Mapper takes it: absolute per-point times, the ring
 /// field, t_end = stamp + `period`. Throws InputError (naming `what`) without time and ring.
 inline RecordedSweep sweep_from(const file::Cloud& c, const std::string& sensor, double period, const std::string& what) {

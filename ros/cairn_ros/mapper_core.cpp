@@ -140,19 +140,19 @@ MapperStatus MapperCore::status() const {
   return st;
 }
 
+std::size_t MapperCore::apply_edit(const file::MapEdit& edit) {
+  const std::lock_guard lock(impl_->mutex);
+  if (!impl_->mapper) throw InputError("cairn_mapper: a map edit before mapping started");
+  const std::size_t removed = impl_->mapper->apply_edit(from_file(edit));
+  ++impl_->status.edits;
+  return removed;
+}
+
 file::Cloud MapperCore::map() const {
   const std::lock_guard lock(impl_->mutex);
-  file::Cloud out;
-  if (!impl_->mapper) return out;
+  if (!impl_->mapper) return {};
   const std::vector<StampedPose> nodes = impl_->mapper->trajectory();
-  if (!nodes.empty()) out.stamp = nodes.back().time;  // the run's clock: the newest node
-  const PointCloud m = impl_->mapper->map();
-  out.xyz.reserve(3 * m.size());
-  for (std::size_t i = 0; i < m.size(); ++i) {
-    const Vec3f p = m.world(i).cast<float>();
-    out.xyz.insert(out.xyz.end(), {p.x(), p.y(), p.z()});
-  }
-  return out;
+  return cloud_of(impl_->mapper->map(), nodes.empty() ? 0.0 : nodes.back().time, "");  // the run's clock: the newest node
 }
 
 std::vector<std::pair<double, file::Transform>> MapperCore::trajectory() const {

@@ -14,6 +14,7 @@ namespace cairn::bag {
 
 struct MapperStatus {
   std::size_t sweeps_received = 0, sweeps_mapped = 0, sweeps_waiting = 0, nodes = 0, map_points = 0;
+  std::size_t edits = 0;  // map edits applied (apply_edit)
   bool started = false;   // robot model and extrinsics known, Mapper built
   bool finished = false;  // finish() ran
 };
@@ -41,6 +42,10 @@ class MapperCore {
   /// (the Mapper needs them first), then mapped. Throws InputError on a malformed sweep or one
   /// after finish(); a sweep that fails is dropped, the queue goes on.
   void add_sweep(const std::string& topic, const file::Cloud& sweep);
+  /// An edit of the map by another stage (e.g. cairn_objects: a grasped object's points removed,
+  /// Sec. 4.5), recorded by the Mapper so that later rebuilds replay it; the voxels removed.
+  /// Throws InputError before mapping started or on an invalid edit.
+  std::size_t apply_edit(const file::MapEdit& edit);
   /// Maps what is still queued, full optimisation, the map rebuilt from the final poses.
   void finish();
 

@@ -58,6 +58,25 @@ Transform from_msg(const geometry_msgs::Transform& m) {
   return {{m.translation.x, m.translation.y, m.translation.z}, {m.rotation.x, m.rotation.y, m.rotation.z, m.rotation.w}};
 }
 
+geometry_msgs::Pose to_pose(const Transform& T) {
+  const geometry_msgs::Transform m = to_msg(T);
+  geometry_msgs::Pose p;
+  p.position.x = m.translation.x;
+  p.position.y = m.translation.y;
+  p.position.z = m.translation.z;
+  p.orientation = m.rotation;
+  return p;
+}
+
+Transform from_pose(const geometry_msgs::Pose& m) {
+  geometry_msgs::Transform t;
+  t.translation.x = m.position.x;
+  t.translation.y = m.position.y;
+  t.translation.z = m.position.z;
+  t.rotation = m.orientation;
+  return from_msg(t);
+}
+
 sensor_msgs::PointCloud2 to_msg(const Cloud& c) {
   sensor_msgs::PointCloud2 m;
   m.header.stamp = stamp_of(c.stamp);

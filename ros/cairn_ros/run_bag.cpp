@@ -28,19 +28,6 @@ file::Cloud sweep_of(const PointCloud& c, double t_start, const std::string& fra
   return s;
 }
 
-file::Cloud cloud_of(const PointCloud& c, double stamp, const std::string& frame) {
-  file::Cloud s;
-  s.stamp = stamp;
-  s.frame = frame;
-  s.xyz.reserve(3 * c.size());
-  for (std::size_t i = 0; i < c.size(); ++i) {
-    const Vec3f p = c.world(i).cast<float>();
-    s.xyz.insert(s.xyz.end(), {p.x(), p.y(), p.z()});
-    if (c.has_colors()) s.rgb.insert(s.rgb.end(), {c.colors[i].r, c.colors[i].g, c.colors[i].b});
-  }
-  return s;
-}
-
 double median_spacing(std::vector<double> stamps) {
   if (stamps.size() < 2) return 0.0;
   std::sort(stamps.begin(), stamps.end());

@@ -7,6 +7,8 @@
 // lidar_*), std_msgs/String robot model. Publishes ~map (PointCloud2, latched, every 1/~map_rate
 // s while mapping), ~trajectory (nav_msgs/Path, latched), ~status (std_msgs/String, JSON), /tf
 // ~map_frame -> world. Service ~finish (std_srvs/Trigger): full optimisation, final map.
+// Subscribes to ~map_edits (cairn_ros/MapEdit, default /cairn_objects/map_edits): edits of the map
+// by other stages, recorded by the Mapper (replayed on rebuilds).
 // Parameters: ~config (the CLI's YAML file), ~set (list of key.path=value), ~map_rate [Hz],
 // ~map_frame, ~sweep_period [s].
 #include <nav_msgs/Odometry.h>
@@ -24,6 +26,7 @@
 
 #include "cairn_ros/mapper_core.hpp"
 #include "cairn_ros/messages.hpp"
+#include "node_support.hpp"
 
 namespace {
 
@@ -32,7 +35,8 @@ namespace file = cairn::bag::file;
 
 class MapperNode {
  public:
-  MapperNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, MapperCore& core, double map_rate, std::string map_frame)
+  MapperNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, MapperCore& core, double map_rate, std::string map_frame,
+             const std::string& edits_topic)
       : core_(core), map_frame_(std::move(map_frame)) {
     const cairn::io::BagTopics& t = core.topics();
     constexpr std::uint32_t kQueue = 2000;  // never drop a sweep while the mapper catches up
@@ -54,6 +58,14 @@ class MapperNode {
       for (const auto& ts : tf->transforms)
         guarded([&] { core_.set_transform(ts.header.frame_id, ts.child_frame_id, file::from_msg(ts.transform)); });
     }));
+    // Edits of the map by the objects node (a grasped object's points removed, Sec. 4.5).
+    subs_.push_back(nh.subscribe<cairn_ros::MapEdit>(edits_topic, 100, [this](const cairn_ros::MapEditConstPtr& e) {
+      guarded([&] {
+        const std::size_t removed = core_.apply_edit(cairn::node::from_msg(*e));
+        ROS_INFO("cairn_mapper: map edit %s: %zu voxels removed", e->kind.c_str(), removed);
+        force_publish_ = true;
+      });
+    }));
     subs_.push_back(nh.subscribe<std_msgs::String>(t.robot_model, 1, [this](const std_msgs::StringConstPtr& s) {
       guarded([&] { core_.set_robot_model(s->data); });
     }));
@@ -68,13 +80,8 @@ class MapperNode {
 
  private:
   template <class F>
-  void guarded(F&& f) {
-    try {
-      f();
-    } catch (const std::exception& e) {  // bad input: said, never a crash
-      ROS_ERROR_THROTTLE(1.0, "cairn_mapper: %s", e.what());
-      ++errors_;
-    }
+  void guarded(F&& f) {  // bad input: said, never a crash
+    (void)cairn::node::guarded("cairn_mapper", errors_, std::forward<F>(f));
   }
 
   void sweep(const std::string& topic, const sensor_msgs::PointCloud2& m) {
@@ -83,7 +90,8 @@ class MapperNode {
 
   void publish() {
     const cairn::bag::MapperStatus s = core_.status();
-    if (s.sweeps_mapped != published_sweeps_ || s.finished != published_finished_) {
+    if (s.sweeps_mapped != published_sweeps_ || s.finished != published_finished_ || force_publish_) {
+      force_publish_ = false;
       published_sweeps_ = s.sweeps_mapped;
       published_finished_ = s.finished;
       // The map and the optimised poses are in the map frame, stamped on the run's clock (the
@@ -122,7 +130,7 @@ class MapperNode {
                   ", \"sweeps_received\": " + std::to_string(s.sweeps_received) +
                   ", \"sweeps_mapped\": " + std::to_string(s.sweeps_mapped) +
                   ", \"sweeps_waiting\": " + std::to_string(s.sweeps_waiting) + ", \"nodes\": " + std::to_string(s.nodes) +
-                  ", \"errors\": " + std::to_string(errors_) + "}";
+                  ", \"edits\": " + std::to_string(s.edits) + ", \"errors\": " + std::to_string(errors_) + "}";
     status_pub_.publish(status);
   }
 
@@ -146,7 +154,7 @@ class MapperNode {
   ros::ServiceServer finish_;
   ros::WallTimer timer_;
   std::size_t published_sweeps_ = 0, errors_ = 0;
-  bool published_finished_ = false;
+  bool published_finished_ = false, force_publish_ = false;
 };
 
 }  // namespace
@@ -154,18 +162,17 @@ class MapperNode {
 int main(int argc, char** argv) {
   ros::init(argc, argv, "cairn_mapper");
   ros::NodeHandle nh, pnh("~");
-  std::string config, map_frame;
-  std::vector<std::string> overrides;
+  std::string map_frame, edits_topic;
+  const cairn::node::ConfigParams config = cairn::node::config_params(pnh);
   double map_rate = 1.0, sweep_period = 0.1;
-  pnh.param<std::string>("config", config, "");
-  pnh.param<std::vector<std::string>>("set", overrides, {});
   pnh.param("map_rate", map_rate, 1.0);
   pnh.param<std::string>("map_frame", map_frame, "map");
   pnh.param("sweep_period", sweep_period, 0.1);  // the VLP-16 at 10 Hz
+  pnh.param<std::string>("map_edits", edits_topic, "/cairn_objects/map_edits");
   try {
     if (!(map_rate > 0.0)) throw std::invalid_argument("~map_rate must be positive");
-    MapperCore core(config, overrides, sweep_period);
-    MapperNode node(nh, pnh, core, map_rate, map_frame);
+    MapperCore core(config.file, config.overrides, sweep_period);
+    MapperNode node(nh, pnh, core, map_rate, map_frame, edits_topic);
     ROS_INFO("cairn_mapper: waiting for %s, %s, %s", core.topics().lidar_h.c_str(), core.topics().lidar_v.c_str(),
              core.topics().odometry.c_str());
     ros::spin();  // one thread: the callbacks and the timer never run at once

@@ -1,5 +1,6 @@
 #include "cairn/objects/pipeline.hpp"
 
+#include "cairn/core/error.hpp"
 #include "cairn/core/transform.hpp"
 
 namespace cairn {
@@ -30,6 +31,12 @@ nlohmann::json object_summary_json(const ObjectRecord& r) {
           {"centroid", vec_json(r.centroid)},
           {"num_points", r.num_points},
           {"updates", r.updates}};
+}
+
+nlohmann::json objects_list_json(const ObjectDatabase& db) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const ObjectRecord& r : db.objects(false)) a.push_back(object_summary_json(r));
+  return nlohmann::json{{"objects", a}};
 }
 
 nlohmann::json object_json(const ObjectRecord& r) {
@@ -71,6 +78,19 @@ nlohmann::json association_json(const ObjectsUpdate& u) {
   return {{"op", u.commit.op},       {"matched", matched},          {"moved", moved},
           {"created", created},      {"vanished", a.vanished},      {"out_of_view", a.out_of_view},
           {"ignored_segments", a.ignored_segments}};
+}
+
+ObjectRecord object_to_grasp(const ObjectDatabase& db, std::optional<std::int64_t> id) {
+  if (id) {
+    std::optional<ObjectRecord> r = db.object(*id);
+    if (!r) throw InputError(db.file().string() + ": no object " + std::to_string(*id));
+    return std::move(*r);
+  }
+  std::optional<ObjectRecord> largest;
+  for (ObjectRecord& r : db.objects())
+    if (r.status != ObjectStatus::lost && (!largest || r.num_points > largest->num_points)) largest = std::move(r);
+  if (!largest) throw InputError(db.file().string() + ": holds no object to grasp");
+  return std::move(*largest);
 }
 
 }  // namespace cairn
