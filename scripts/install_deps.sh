@@ -10,15 +10,17 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # kernels: eigen nanoflann tbb; config/CLI/logging: yaml-cpp cli11 spdlog fmt nlohmann-json;
 # pictures: zlib; simulator: embree (ray casting), mujoco (grasp physics); mapping: ceres;
-# object database: sqlite3; report: npm (three.js); ROS 1 from Debian (ros/, --bag): rosbag
-# storage and the message headers.
+# object database: sqlite3; report: npm (three.js); ROS 1 from Debian (ros/, --bag, the nodes):
+# rosbag storage, roscpp, the message headers, and the message definitions + gencpp/genpy that
+# generate cairn's own service types.
 PACKAGES=(
   build-essential cmake ninja-build pkg-config python3
   libeigen3-dev libnanoflann-dev libtbb-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev zlib1g-dev
   libembree-dev libmujoco-dev libceres-dev libsqlite3-dev
   librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev libstd-msgs-dev
-  pluginlib-dev librcpputils-dev libament-index-cpp-dev libroscpp-dev libstd-srvs-dev
+  pluginlib-dev librcpputils-dev libament-index-cpp-dev libroscpp-dev libstd-srvs-dev libvisualization-msgs-dev
+  ros-std-msgs ros-geometry-msgs ros-sensor-msgs python3-gencpp python3-genpy
 )
 # npm from Debian unless a node.js with npm is installed already (e.g. NodeSource's, which
 # conflicts with Debian's npm package).
@@ -30,7 +32,12 @@ command -v npm >/dev/null || PACKAGES+=(npm)
 if [ "${1:-}" = "--tests" ]; then
   PACKAGES+=(libgtest-dev libgmock-dev libbenchmark-dev chromium libpcl-dev libopen3d-dev python3-rosbag
              python3-sensor-msgs python3-nav-msgs python3-geometry-msgs python3-tf2-msgs python3-std-msgs
-             python3-rostest python3-roslaunch python3-rosmaster python3-rospy python3-std-srvs)
+             python3-rostest python3-roslaunch python3-rosmaster python3-rospy python3-std-srvs
+             python3-visualization-msgs)
+fi
+# RViz and a virtual display for its screenshot (ros/scripts/rviz_screenshot.sh; docs/ros.md).
+if [ "${1:-}" = "--rviz" ]; then
+  PACKAGES+=(rviz xvfb imagemagick python3-visualization-msgs)
 fi
 export DEBIAN_FRONTEND=noninteractive
 missing=()

@@ -2,15 +2,18 @@
 # ctest RosPipeline.AgainstTheTruth: simulate exp1 (seed 1, 8 s, with the drone) as a bag, then
 # rostest (its own master) runs robot.launch + base_station.launch on it and checks every node's
 # answers against the run's truth files.
-#   run_pipeline_test.sh CAIRN_EXE ROS_PACKAGE_DIR PYTHONPATH_OF_THE_GENERATED_TYPES WORK_DIR
+#   run_pipeline_test.sh CAIRN_EXE ROS_PACKAGE_DIR PYTHONPATH_OF_THE_GENERATED_TYPES WORK_DIR [SCENARIO SEED]
+# (ctest: exp1 seed 1; other scenarios and seeds measure the same checks on sites nobody tuned on)
 set -euo pipefail
 cairn=$1
 pkg_dir=$2
 generated=$3
 work=$4
+scenario=${5:-exp1}
+seed=${6:-1}
 rm -rf "$work"
 mkdir -p "$work"
-"$cairn" simulate --scenario exp1 --seed 1 --duration 8 --out "$work/run" --bag "$work/run.bag" \
+"$cairn" simulate --scenario "$scenario" --seed "$seed" --duration 8 --out "$work/run" --bag "$work/run.bag" \
   --log-level warn > "$work/simulate.json"
 sweeps=$(/usr/bin/python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["sweeps"])' "$work/simulate.json")
 echo "bag: $sweeps sweeps"
