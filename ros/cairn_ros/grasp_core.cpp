@@ -1,6 +1,5 @@
 #include "cairn_ros/grasp_core.hpp"
 
-#include <mutex>
 #include <optional>
 
 #include "cairn/core/error.hpp"
@@ -9,14 +8,14 @@
 #include "cairn/objects/pipeline.hpp"
 #include "cairn/robot/gripper.hpp"
 #include "cairn_ros/convert.hpp"
+#include "cairn_ros/latest_cloud.hpp"
 
 namespace cairn::bag {
 
 struct GraspCore::Impl {
   AppConfig config;
   std::string database;
-  std::optional<PointCloud> map, drone;
-  mutable std::mutex mutex;  // subscribers vs the service
+  LatestCloud map, drone;
 };
 
 GraspCore::GraspCore(const std::string& config_file, const std::vector<std::string>& overrides, std::string database)
@@ -28,17 +27,9 @@ GraspCore::GraspCore(const std::string& config_file, const std::vector<std::stri
 
 GraspCore::~GraspCore() = default;
 
-void GraspCore::set_map(const file::Cloud& map) {
-  PointCloud m = points_of(map);
-  const std::lock_guard lock(impl_->mutex);
-  impl_->map = std::move(m);
-}
+void GraspCore::set_map(const file::Cloud& map) { impl_->map.set(map); }
 
-void GraspCore::set_drone_cloud(const file::Cloud& aligned) {
-  PointCloud d = points_of(aligned);
-  const std::lock_guard lock(impl_->mutex);
-  impl_->drone = std::move(d);
-}
+void GraspCore::set_drone_cloud(const file::Cloud& aligned) { impl_->drone.set(aligned); }
 
 namespace {
 
@@ -59,18 +50,13 @@ std::vector<GripperBox> parts_in_map(const grasp::Grasp& g, const GripperConfig&
 }  // namespace
 
 GraspAnswer GraspCore::plan(std::int64_t id) const {
-  std::optional<PointCloud> map, drone;
-  {
-    const std::lock_guard lock(impl_->mutex);
-    map = impl_->map;
-    drone = impl_->drone;
-  }
-  if (!map || map->empty()) throw InputError("cairn_grasp: no map received yet");
+  const std::shared_ptr<const PointCloud> map = impl_->map.get(), drone = impl_->drone.get();
+  if (!map) throw InputError("cairn_grasp: no map received yet");
   const ObjectDatabase db(impl_->database, ObjectDatabase::Mode::read_only);
   const ObjectRecord object = object_to_grasp(db, id > 0 ? std::optional<std::int64_t>(id) : std::nullopt);
   const GripperConfig& gripper = impl_->config.simulation.gripper;
   const grasp::GraspPlanning p =
-      grasp::plan_grasps(*map, object.cloud, drone ? &*drone : nullptr, gripper, impl_->config.grasp);
+      grasp::plan_grasps(*map, object.cloud, drone.get(), gripper, impl_->config.grasp);
   GraspAnswer out{.object = object.id, .grasps = {}, .json = grasp::to_json(p, gripper).dump()};
   for (const grasp::Grasp& g : p.grasps)
     out.grasps.push_back({.T_map_gripper = to_file(g.T_map_gripper), .opening = g.opening, .parts = parts_in_map(g, gripper)});

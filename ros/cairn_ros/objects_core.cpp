@@ -11,14 +11,15 @@
 #include "cairn/objects/updates.hpp"
 #include "cairn/report/report.hpp"
 #include "cairn_ros/convert.hpp"
+#include "cairn_ros/latest_cloud.hpp"
 
 namespace cairn::bag {
 
 struct ObjectsCore::Impl {
   AppConfig config;
   ObjectDatabase db;
-  std::optional<PointCloud> map, merged;  // merged: dropped at the first grasp
-  mutable std::mutex mutex;  // subscribers vs the services
+  LatestCloud map, merged;  // merged: dropped at the first grasp
+  mutable std::mutex mutex;  // the database: one service at a time
 
   Impl(AppConfig c, const std::string& database) : config(std::move(c)), db(database, ObjectDatabase::Mode::create) {}
 
@@ -28,9 +29,10 @@ struct ObjectsCore::Impl {
     return std::move(*r);
   }
 
-  [[nodiscard]] const PointCloud& newest_map() const {
-    if (!map || map->empty()) throw InputError("cairn_objects: no map received yet");
-    return *map;
+  [[nodiscard]] std::shared_ptr<const PointCloud> newest_map() const {
+    std::shared_ptr<const PointCloud> m = map.get();
+    if (!m) throw InputError("cairn_objects: no map received yet");
+    return m;
   }
 
   /// Commits `op` and answers with the object after it and the map edits of the operation.
@@ -52,27 +54,17 @@ ObjectsCore::ObjectsCore(const std::string& config_file, const std::vector<std::
 
 ObjectsCore::~ObjectsCore() = default;
 
-void ObjectsCore::set_map(const file::Cloud& map) {
-  PointCloud m = points_of(map);
-  const std::lock_guard lock(impl_->mutex);
-  impl_->map = std::move(m);
-}
+void ObjectsCore::set_map(const file::Cloud& map) { impl_->map.set(map); }
 
-void ObjectsCore::set_merged_map(const file::Cloud& merged) {
-  PointCloud m = points_of(merged);
-  const std::lock_guard lock(impl_->mutex);
-  impl_->merged = std::move(m);
-}
+void ObjectsCore::set_merged_map(const file::Cloud& merged) { impl_->merged.set(merged); }
 
-bool ObjectsCore::has_map() const {
-  const std::lock_guard lock(impl_->mutex);
-  return impl_->map && !impl_->map->empty();
-}
+bool ObjectsCore::has_map() const { return impl_->map.get() != nullptr; }
 
 std::string ObjectsCore::segment(double time) {
   const std::lock_guard lock(impl_->mutex);
-  const bool merged = impl_->merged && !impl_->merged->empty();
-  const PointCloud& map = merged ? *impl_->merged : impl_->newest_map();
+  const std::shared_ptr<const PointCloud> merged = impl_->merged.get();
+  const std::shared_ptr<const PointCloud> newest = merged ? merged : impl_->newest_map();
+  const PointCloud& map = *newest;
   const SegmentationResult seg = cairn::segment(map, impl_->config.segmentation);
   const std::vector<PointCloud> segments = object_segments(map, seg);
   const ObjectsUpdate u = update_objects(impl_->db, map, segments, impl_->config.objects.association, time,
@@ -99,11 +91,11 @@ ObjectEventAnswer ObjectsCore::release(std::int64_t id, const file::Transform& T
 
 std::string ObjectsCore::realign(double time) {
   const std::lock_guard lock(impl_->mutex);
-  const PointCloud& map = impl_->newest_map();
+  const std::shared_ptr<const PointCloud> map = impl_->newest_map();
   nlohmann::json out = nlohmann::json::array();
   for (const ObjectRecord& o : impl_->db.objects()) {
     if (o.status != ObjectStatus::placed) continue;
-    const RealignResult r = relocate_object(o, map, impl_->config.objects, impl_->config.segmentation);
+    const RealignResult r = relocate_object(o, *map, impl_->config.objects, impl_->config.segmentation);
     (void)impl_->db.commit(realign_operation(o, r, time));
     out.push_back({{"object", o.id}, {"found", r.found}, {"large", r.large}, {"translation_m", r.translation},
                    {"rotation_deg", r.rotation_deg}, {"fitness", r.fitness}, {"reason", r.reason}});

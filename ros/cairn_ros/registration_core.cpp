@@ -1,20 +1,18 @@
 #include "cairn_ros/registration_core.hpp"
 
-#include <mutex>
-#include <optional>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn/eval/app_config.hpp"
 #include "cairn/registration/drone_registration.hpp"
 #include "cairn_ros/convert.hpp"
+#include "cairn_ros/latest_cloud.hpp"
 
 namespace cairn::bag {
 
 struct RegistrationCore::Impl {
   AppConfig config;
-  std::optional<PointCloud> map, drone;
-  mutable std::mutex mutex;  // subscribers vs the service (a multi-threaded spinner may be used)
+  LatestCloud map, drone;
 };
 
 RegistrationCore::RegistrationCore(const std::string& config_file, const std::vector<std::string>& overrides)
@@ -27,34 +25,22 @@ RegistrationCore::~RegistrationCore() = default;
 
 const io::BagTopics& RegistrationCore::topics() const { return impl_->config.bag; }
 
-void RegistrationCore::set_map(const file::Cloud& map) {
-  PointCloud m = points_of(map);
-  const std::lock_guard lock(impl_->mutex);
-  impl_->map = std::move(m);
-}
+void RegistrationCore::set_map(const file::Cloud& map) { impl_->map.set(map); }
 
-void RegistrationCore::set_drone_cloud(const file::Cloud& cloud) {
-  PointCloud d = points_of(cloud);
-  const std::lock_guard lock(impl_->mutex);
-  impl_->drone = std::move(d);
-}
+void RegistrationCore::set_drone_cloud(const file::Cloud& cloud) { impl_->drone.set(cloud); }
 
 RegistrationAnswer RegistrationCore::register_drone(const std::string& cloud_file, const std::string& sfm,
                                                     const std::string& metric, bool gravity_aligned) {
-  std::optional<PointCloud> map, drone;
-  {
-    const std::lock_guard lock(impl_->mutex);
-    map = impl_->map;
-    drone = impl_->drone;
-  }
-  if (!map || map->empty()) throw InputError("cairn_registration: no map received yet");
-  if (!cloud_file.empty()) drone = io::load_cloud(cloud_file);
+  const std::shared_ptr<const PointCloud> map = impl_->map.get();
+  if (!map) throw InputError("cairn_registration: no map received yet");
+  std::shared_ptr<const PointCloud> drone = impl_->drone.get();
+  if (!cloud_file.empty()) drone = std::make_shared<const PointCloud>(io::load_cloud(cloud_file));
   if (!drone || drone->empty())
     throw InputError("cairn_registration: no drone cloud (give cloud_file, or publish it on " +
                      impl_->config.bag.drone_cloud + ")");
   GlobalRegistrationConfig registration = impl_->config.registration;
   if (gravity_aligned) registration.gravity_aligned = true;
-  const DroneRegistration d = cairn::register_drone(std::move(*drone), *map, sfm, metric,
+  const DroneRegistration d = cairn::register_drone(*drone, *map, sfm, metric,
                                                     impl_->config.segmentation, registration, impl_->config.scale);
   RegistrationAnswer out;
   out.success = d.result.success;

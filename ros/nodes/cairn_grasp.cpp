@@ -128,13 +128,9 @@ int main(int argc, char** argv) {
   pnh.param<std::string>("drone_topic", drone_topic, "/cairn_registration/aligned");
   pnh.param<std::string>("map_frame", map_frame, "map");
   pnh.param("markers", marker_grasps, 5);
-  try {
+  return cairn::node::run_node("cairn_grasp", [&] {
     GraspCore core(config.file, config.overrides, database);
     GraspNode node(nh, pnh, core, map_topic, drone_topic, map_frame, marker_grasps);
     ros::spin();
-  } catch (const std::exception& e) {
-    ROS_FATAL("cairn_grasp: %s", e.what());
-    return 2;
-  }
-  return 0;
+  });
 }

@@ -169,16 +169,12 @@ int main(int argc, char** argv) {
   pnh.param<std::string>("map_frame", map_frame, "map");
   pnh.param("sweep_period", sweep_period, 0.1);  // the VLP-16 at 10 Hz
   pnh.param<std::string>("map_edits", edits_topic, "/cairn_objects/map_edits");
-  try {
+  return cairn::node::run_node("cairn_mapper", [&] {
     if (!(map_rate > 0.0)) throw std::invalid_argument("~map_rate must be positive");
     MapperCore core(config.file, config.overrides, sweep_period);
     MapperNode node(nh, pnh, core, map_rate, map_frame, edits_topic);
     ROS_INFO("cairn_mapper: waiting for %s, %s, %s", core.topics().lidar_h.c_str(), core.topics().lidar_v.c_str(),
              core.topics().odometry.c_str());
     ros::spin();  // one thread: the callbacks and the timer never run at once
-  } catch (const std::exception& e) {
-    ROS_FATAL("cairn_mapper: %s", e.what());
-    return 2;
-  }
-  return 0;
+  });
 }

@@ -3,12 +3,13 @@
 //
 // Subscribes: ~map_topic (PointCloud2, default /cairn_mapper/map), ~merged_topic (default
 // /cairn_registration/merged: the map merged with the registered drone cloud, segmented instead of
-// the map until the first grasp). Services: ~segment (std_srvs/Trigger: segment, associate, store;
-// the association JSON in the answer's message), ~grasp and ~release (cairn_ros/ObjectEvent), ~realign (std_srvs/Trigger:
-// every placed object re-aligned to the newest map). Publishes ~markers (MarkerArray, latched:
-// each object's points in its colour — the HTML report's, the same across updates — and a label
-// "id status"), ~objects (std_msgs/String, latched: `cairn objects list` JSON), ~map_edits
-// (cairn_ros/MapEdit: a grasped object's points to remove from the map, for cairn_mapper).
+// the map until the first grasp). Services: ~segment (std_srvs/Trigger: segment, associate and
+// store at the newest map's stamp; the association JSON in the answer's message), ~grasp and
+// ~release (cairn_ros/ObjectEvent), ~realign (std_srvs/Trigger: every placed object re-aligned to
+// the newest map). Publishes ~markers (MarkerArray, latched: each object's points in its colour —
+// the HTML report's, the same across updates — and a label "id status"), ~objects
+// (std_msgs/String, latched: `cairn objects list` JSON), ~map_edits (cairn_ros/MapEdit: a grasped
+// object's points to remove from the map, for cairn_mapper).
 // Parameters: ~database (the SQLite file, created when missing, kept across runs), ~config, ~set,
 // ~map_topic, ~merged_topic, ~map_frame, ~view_voxel [m] (the markers' thinning).
 #include <cairn_ros/MapEdit.h>
@@ -38,7 +39,10 @@ class ObjectsNode {
               const std::string& merged_topic, std::string map_frame, double view_voxel)
       : core_(core), map_frame_(std::move(map_frame)), view_voxel_(view_voxel) {
     map_sub_ = nh.subscribe<sensor_msgs::PointCloud2>(map_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-      guarded([&] { core_.set_map(file::from_msg(*m, true, "map")); });
+      guarded([&] {
+        core_.set_map(file::from_msg(*m, true, "map"));
+        map_time_ = m->header.stamp.toSec();
+      });
     });
     merged_sub_ = nh.subscribe<sensor_msgs::PointCloud2>(merged_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
       guarded([&] { core_.set_merged_map(file::from_msg(*m, true, "merged map")); });
@@ -60,10 +64,10 @@ class ObjectsNode {
   }
 
   bool segment(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-    return trigger(res, [&] { return core_.segment(ros::Time::now().toSec()); });
+    return trigger(res, [&] { return core_.segment(map_time_); });
   }
   bool realign(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-    return trigger(res, [&] { return core_.realign(ros::Time::now().toSec()); });
+    return trigger(res, [&] { return core_.realign(map_time_); });
   }
   template <class F>
   bool trigger(std_srvs::Trigger::Response& res, F&& f) {
@@ -145,6 +149,7 @@ class ObjectsNode {
   ObjectsCore& core_;
   std::string map_frame_;
   double view_voxel_;
+  double map_time_ = 0.0;  // the newest map's stamp (the run's clock): the time of segmentations and re-alignments
   ros::Subscriber map_sub_, merged_sub_;
   ros::Publisher markers_pub_, objects_pub_, edits_pub_;
   std::vector<ros::ServiceServer> services_;
@@ -164,13 +169,9 @@ int main(int argc, char** argv) {
   pnh.param<std::string>("merged_topic", merged_topic, "/cairn_registration/merged");
   pnh.param<std::string>("map_frame", map_frame, "map");
   pnh.param("view_voxel", view_voxel, 0.05);
-  try {
+  return cairn::node::run_node("cairn_objects", [&] {
     ObjectsCore core(config.file, config.overrides, database);
     ObjectsNode node(nh, pnh, core, map_topic, merged_topic, map_frame, view_voxel);
     ros::spin();
-  } catch (const std::exception& e) {
-    ROS_FATAL("cairn_objects: %s", e.what());
-    return 2;
-  }
-  return 0;
+  });
 }

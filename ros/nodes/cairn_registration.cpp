@@ -86,13 +86,9 @@ int main(int argc, char** argv) {
   std::string map_topic, map_frame;
   pnh.param<std::string>("map_topic", map_topic, "/cairn_mapper/map");
   pnh.param<std::string>("map_frame", map_frame, "map");
-  try {
+  return cairn::node::run_node("cairn_registration", [&] {
     RegistrationCore core(config.file, config.overrides);
     RegistrationNode node(nh, pnh, core, map_topic, map_frame);
     ros::spin();
-  } catch (const std::exception& e) {
-    ROS_FATAL("cairn_registration: %s", e.what());
-    return 2;
-  }
-  return 0;
+  });
 }

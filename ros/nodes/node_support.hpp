@@ -41,6 +41,19 @@ std::string guarded(const char* node, std::size_t& errors, F&& f) {
   }
 }
 
+/// Runs a node's `body` (build the core and the node, spin): a bad configuration or database is
+/// fatal at start, with exit 2.
+template <class F>
+int run_node(const char* node, F&& body) {
+  try {
+    body();
+  } catch (const std::exception& e) {
+    ROS_FATAL("%s: %s", node, e.what());
+    return 2;
+  }
+  return 0;
+}
+
 inline cairn_ros::MapEdit to_msg(const file::MapEdit& e, const std::string& frame) {
   cairn_ros::MapEdit m;
   m.kind = e.kind;

@@ -145,6 +145,13 @@ TEST(ObjectsCore, OneObjectPerStoneGraspReleaseAndKeptAcrossRestarts) {
     const Vec3d moved(placed.at("centroid")[0].get<double>(), placed.at("centroid")[1].get<double>(),
                       placed.at("centroid")[2].get<double>());
     EXPECT_LT((moved - largest_centroid - Vec3d(0.5, 0, 0)).norm(), 1e-6);
+    // The map still shows the stone where it was: re-alignment finds it there and reports the
+    // large correction (as for a stone that rolled back), never a silent wrong pose.
+    const nlohmann::json realigned = nlohmann::json::parse(core.realign(11.0)).at("realigned");
+    ASSERT_EQ(realigned.size(), 1u);
+    EXPECT_TRUE(realigned[0].at("found").get<bool>());
+    EXPECT_TRUE(realigned[0].at("large").get<bool>());
+    EXPECT_NEAR(realigned[0].at("translation_m").get<double>(), 0.5, 0.05);
   }
   // A restarted node finds every object where it left it.
   ObjectsCore again("", {}, db.string());
