@@ -17,12 +17,13 @@ namespace {
 struct RegisterArgs {
   CommonOptions common;
   std::string source, target, out, sfm, metric, truth;
-  bool gravity_aligned = false;
+  bool gravity_aligned = false, estimate_scale = false;
 };
 
 int run_register(const RegisterArgs& a) {
   AppConfig cfg = a.common.load();
   if (a.gravity_aligned) cfg.registration.gravity_aligned = true;
+  if (a.estimate_scale) cfg.registration.scale_check.estimate = true;
   cfg.registration.validate();
   if (a.sfm.empty() != a.metric.empty()) throw InputError("register: --sfm and --metric go together");
   PointCloud source = io::load_cloud(a.source);
@@ -32,6 +33,8 @@ int run_register(const RegisterArgs& a) {
   const DroneRegistration d = register_drone(std::move(source), target, a.sfm, a.metric, cfg.segmentation,
                                              cfg.registration, cfg.scale);
   const GlobalRegistrationResult& r = d.result;
+  if (d.passes > 1)
+    spdlog::info("register: scale estimated {:.4f} in {} passes", d.estimated_scale, d.passes);
   if (d.scale)
     spdlog::info("register: scale recovered from {} cameras: {:.5f} (residual RMS {:.3f} m)", d.scale->cameras,
                  d.scale->T_metric_sfm.scale, d.scale->rms);
@@ -102,6 +105,9 @@ void add_register_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--sfm", args->sfm, "COLMAP text model of SOURCE: recover its metric scale first (Sec. 4.1)");
   cmd->add_option("--metric", args->metric, "metric camera trajectory (TUM) for --sfm");
   cmd->add_flag("--gravity-aligned", args->gravity_aligned, "SOURCE's z axis is up: 4-DoF registration");
+  cmd->add_flag("--estimate-scale", args->estimate_scale,
+                "7-DoF: a SOURCE whose scale is off is rescaled and registered again, the scale reported "
+                "(without it such a SOURCE is refused, exit 3)");
   cmd->add_option("--truth", args->truth, "JSON with the true T_target_source (4x4, or a run's truth/drone.json): report the errors");
   args->common.add_to(*cmd);
   cmd->callback([&run, args] { run = [args] { return run_register(*args); }; });

@@ -1,5 +1,7 @@
 #include "cairn/registration/drone_registration.hpp"
 
+#include <cmath>
+
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/colmap.hpp"
 #include "cairn/core/io/trajectory.hpp"
@@ -21,8 +23,25 @@ DroneRegistration register_drone(PointCloud source, const PointCloud& target, co
     transform_cloud(source, T_metric_sfm);
     out.scale_ms = sw.elapsed_ms();
   }
-  out.result = register_global(source, target, segmentation, registration);
-  out.T_target_source = Similarity::from_isometry(out.result.T_target_source) * T_metric_sfm;
+  // 7-DoF (scale_check.estimate): rescale by the fitted scale and register again while it is off.
+  Similarity T_scaled = T_metric_sfm;
+  for (;; ++out.passes) {
+    out.result = register_global(source, target, segmentation, registration);
+    const ScaleFit& fit = out.result.scale_fit;
+    const ScaleCheckConfig& check = registration.scale_check;
+    const bool scale_refused = !out.result.success && fit.observable && std::abs(fit.scale - 1.0) > check.max_scale_error;
+    const bool off = fit.observable && std::abs(fit.scale - 1.0) > check.estimate_tolerance;
+    if (!check.estimate || !(out.result.success || scale_refused) || !off || out.passes >= check.estimate_passes) break;
+    // The fitted scale holds in the target frame; about the source's centroid it is the same.
+    const Vec3d c = source.origin + centroid(source.points).cast<double>();
+    Similarity S;
+    S.scale = fit.scale;
+    S.translation = c - fit.scale * c;
+    transform_cloud(source, S);
+    T_scaled = S * T_scaled;
+    out.estimated_scale *= fit.scale;
+  }
+  out.T_target_source = Similarity::from_isometry(out.result.T_target_source) * T_scaled;
   return out;
 }
 
@@ -65,6 +84,9 @@ nlohmann::json to_json(const DroneRegistration& d) {
                        {"max_centroid_distance_m", c.max_centroid_distance}, {"refined", c.refined},
                        {"rmse_m", c.rmse}, {"overlap", c.overlap}, {"accepted", c.accepted}});
   j["candidate_reports"] = reports;
+  j["scale_check"] = {{"scale", r.scale_fit.scale},          {"observable", r.scale_fit.observable},
+                      {"segments", r.scale_fit.segments},    {"extent_m", r.scale_fit.extent},
+                      {"estimated_scale", d.estimated_scale}, {"passes", d.passes}};
   return j;
 }
 

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <map>
 #include <numeric>
 #include <optional>
 #include <random>
@@ -245,6 +247,23 @@ std::pair<Eigen::Isometry3d, double> refine_two_pass(std::span<const Vec3f> sour
 }
 
 /// The whole cloud as one set (segments = false).
+/// The matched segment pairs' points for the scale check, the source's moved by T.
+std::vector<SegmentPair> segment_pairs(const SegmentSet& src, const SegmentSet& tgt, const Verification& v,
+                                       const Eigen::Isometry3d& T) {
+  const Eigen::Isometry3f Tf = T.cast<float>();
+  std::vector<SegmentPair> out;
+  for (const auto& [si, ti] : v.pairs) {
+    SegmentPair p;
+    for (std::uint32_t i : src.members[std::size_t(si)]) p.source.push_back(Tf * src.points[i]);
+    for (std::uint32_t i : tgt.members[std::size_t(ti)]) {
+      p.target.push_back(tgt.points[i]);
+      p.target_normals.push_back(tgt.normals[i]);
+    }
+    out.push_back(std::move(p));
+  }
+  return out;
+}
+
 SegmentSet whole_cloud(std::span<const Vec3f> points) {
   SegmentSet s;
   s.points.assign(points.begin(), points.end());
@@ -391,6 +410,7 @@ void GlobalRegistrationConfig::validate() const {
     throw ConfigError("registration.levelling.min_share must be in [0, 1]");
   if (!(max_tilt_deg >= 0.0)) throw ConfigError("registration.max_tilt_deg must be >= 0");
   icp.validate();
+  scale_check.validate();
 }
 
 RegistrationError registration_error(const Similarity& estimate, const Similarity& truth, const Vec3d& at) {
@@ -548,6 +568,8 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
   std::vector<Eigen::Isometry3d> tried;
   std::optional<std::size_t> accepted;
   Verification accepted_pairs;
+  // Per refined candidate (by rank): the refined transform and its matched pairs (scale check).
+  std::map<std::size_t, std::pair<Eigen::Isometry3d, Verification>> refined_pairs;
   for (std::size_t rank = 0; rank < order.size() && refined < cfg.max_refinements; ++rank) {
     const Verification& v = verified[order[rank]];
     if (v.inliers < cfg.acceptance.min_matched_segments) break;  // sorted: the rest have fewer
@@ -577,6 +599,7 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
     rep.icp_rmse = icp_rmse;
     rep.accepted = o.rmse < cfg.acceptance.e_icp && o.share >= cfg.acceptance.min_overlap &&
                    after.inliers >= cfg.acceptance.min_matched_segments;
+    refined_pairs[rank] = {T, after};
     if (rep.accepted && !accepted) {
       accepted = rank;
       accepted_pairs = after;
@@ -585,8 +608,31 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
   }
   t.add("refinement", sw.lap_ms());
 
+  // 5b. Scale check (beyond the paper): the matched segments, spread over the site, aligned one
+  // by one must not fit a similarity of another scale. A rigid fit of a wrongly scaled source
+  // passes the overlap test near the site's centre and is wrong by decimetres at its edges; a
+  // larger error fails the overlap test, and the candidate with the most matched segments tells why.
+  std::optional<std::size_t> checked = accepted;
+  for (const auto& [rank, candidate] : refined_pairs)
+    if (!checked || (!accepted && candidate.second.inliers > refined_pairs.at(*checked).second.inliers)) checked = rank;
+  if (checked) {
+    const auto& [T, pairs] = refined_pairs.at(*checked);
+    r.scale_fit = fit_scale(segment_pairs(src, tgt, pairs, T), cfg.scale_check);
+  }
+  t.add("scale_check", sw.lap_ms());
+  if (r.scale_fit.observable && std::abs(r.scale_fit.scale - 1.0) > cfg.scale_check.max_scale_error) {
+    char why[240];
+    std::snprintf(why, sizeof why,
+                  "scale: a rigid fit cannot explain the matches, the source is %.1f %% %s than the target "
+                  "(recover its scale, or estimate it: registration.scale_check.estimate / --estimate-scale)",
+                  100.0 * std::abs(1.0 / r.scale_fit.scale - 1.0), r.scale_fit.scale > 1.0 ? "smaller" : "larger");
+    r.reason = why;
+    accepted.reset();
+  }
+
   if (!accepted) {
-    r.reason = refined > 0 ? "no refined candidate passes the acceptance test"
+    if (r.reason.empty())
+      r.reason = refined > 0 ? "no refined candidate passes the acceptance test"
                : r.candidates + r.centroid_candidates == 0
                    ? "no geometrically consistent group of correspondences and no centroid hypothesis"
                    : "no candidate matches " + std::to_string(cfg.acceptance.min_matched_segments) +

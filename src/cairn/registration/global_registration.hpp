@@ -39,6 +39,7 @@
 #include "cairn/features/shot.hpp"
 #include "cairn/registration/consistency_grouping.hpp"
 #include "cairn/registration/icp.hpp"
+#include "cairn/registration/scale_check.hpp"
 #include "cairn/segmentation/segmenter.hpp"
 
 namespace cairn {
@@ -138,6 +139,11 @@ struct GlobalRegistrationConfig {
   double absorb_distance = 0.1;  // [m]
   std::size_t absorb_min_points = 10;
 
+  /// Beyond the paper: the accepted alignment's matched segments must not fit a similarity of
+  /// another scale (a source whose scale is off is refused; scale_check.estimate: register_drone
+  /// rescales and registers again).
+  ScaleCheckConfig scale_check;
+
   template <class V>
   void visit(V& v) {
     v("segments", segments,
@@ -162,6 +168,7 @@ struct GlobalRegistrationConfig {
     v("coarse_source_voxel", coarse_source_voxel,
       "voxel size thinning the source for the first ICP pass (0: every point) [m]");
     v("acceptance", acceptance, "acceptance test of a refined candidate");
+    v("scale_check", scale_check, "refusing a source whose scale is off (a similarity fits the matches better)");
     v("gravity_aligned", gravity_aligned, "the source's z axis is up: 4-DoF candidates and ICP");
     v("levelling", levelling, "turning an arbitrarily rotated source's ground onto the target's");
     v("max_tilt_deg", max_tilt_deg, "gravity_aligned: drop candidates tilting z by more than this [deg]");
@@ -194,6 +201,9 @@ struct GlobalRegistrationResult {
   std::string reason;  // why not, when !success
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();  // world coordinates (origins honoured)
   double rmse = 0;     // [m] overlap RMSE of the accepted candidate
+  /// The similarity fit of the accepted candidate's matched segments (scale_check): a scale
+  /// beyond 1 ± max_scale_error refuses it (reason "scale ...").
+  ScaleFit scale_fit;
   double overlap = 0;
   std::vector<std::pair<std::int32_t, std::int32_t>> matched_segments;  // (source id, target id)
   std::size_t candidates = 0;           // transforms from the grouping

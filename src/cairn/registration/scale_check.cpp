@@ -1,0 +1,137 @@
+#include "cairn/registration/scale_check.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <vector>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/kdtree.hpp"
+#include "cairn/registration/umeyama.hpp"
+
+namespace cairn {
+
+void ScaleCheckConfig::validate() const {
+  if (!(max_scale_error > 0.0 && max_scale_error < 1.0))
+    throw ConfigError("registration.scale_check.max_scale_error must be in (0, 1)");
+  if (estimate_passes < 1) throw ConfigError("registration.scale_check.estimate_passes must be >= 1");
+  if (!(estimate_tolerance > 0.0 && estimate_tolerance <= max_scale_error))
+    throw ConfigError("registration.scale_check.estimate_tolerance must be in (0, max_scale_error]");
+  if (!(correspondence_distance > 0.0)) throw ConfigError("registration.scale_check.correspondence_distance must be > 0");
+  if (!(trim > 0.0 && trim <= 1.0)) throw ConfigError("registration.scale_check.trim must be in (0, 1]");
+  if (iterations < 1 || rounds < 1) throw ConfigError("registration.scale_check.iterations and rounds must be >= 1");
+  if (!(tolerance > 0.0)) throw ConfigError("registration.scale_check.tolerance must be > 0");
+  if (!(min_extent >= 0.0)) throw ConfigError("registration.scale_check.min_extent must be >= 0");
+}
+
+namespace {
+
+constexpr std::size_t kMinSegmentPoints = 10;  // fewer pairs move no segment
+constexpr std::size_t kMinSegments = 3;        // a similarity needs three non-collinear centroids
+
+constexpr double kMinConditioning = 1e-3;  // point-to-plane: smallest/largest eigenvalue of Σ n nᵀ
+
+struct Residual {
+  float sq_dist = 0.0f;
+  Vec3d offset;  // target point − source point
+  Vec3d normal;  // the target's (zero without normals)
+};
+
+/// One step of the translation: point-to-plane (Σ n nᵀ d = Σ n nᵀ offset) when the normals span
+/// all directions, else the mean offset (point-to-point).
+Vec3d translation_step(std::span<const Residual> kept) {
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Vec3d b = Vec3d::Zero(), mean = Vec3d::Zero();
+  for (const Residual& r : kept) {
+    A += r.normal * r.normal.transpose();
+    b += r.normal * r.normal.dot(r.offset);
+    mean += r.offset;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(A);
+  if (eig.eigenvalues()(2) > 0.0 && eig.eigenvalues()(0) > kMinConditioning * eig.eigenvalues()(2))
+    return A.ldlt().solve(b);
+  return mean / double(kept.size());
+}
+
+/// Where a trimmed translation ICP puts `source` on the target (its tree and normals): the
+/// translation, or nothing when too few points pair up.
+std::optional<Vec3d> align_translation(const std::vector<Vec3d>& source, const KdTree& tree,
+                                       std::span<const Vec3f> normals, const ScaleCheckConfig& c) {
+  Vec3d d = Vec3d::Zero();
+  const float max_sq = float(c.correspondence_distance * c.correspondence_distance);
+  std::vector<Residual> residuals;
+  for (int it = 0; it < c.iterations; ++it) {
+    residuals.clear();
+    for (const Vec3d& p : source) {
+      float d2 = 0.0f;
+      const Vec3d q = p + d;
+      const std::uint32_t j = tree.nearest(q.cast<float>(), &d2);
+      if (d2 <= max_sq)
+        residuals.push_back({d2, tree.points()[j].cast<double>() - q,
+                             normals.empty() ? Vec3d::Zero() : Vec3d(normals[j].cast<double>())});
+    }
+    const std::size_t keep = std::size_t(c.trim * double(residuals.size()));
+    if (keep < kMinSegmentPoints) return std::nullopt;
+    std::nth_element(residuals.begin(), residuals.begin() + std::ptrdiff_t(keep - 1), residuals.end(),
+                     [](const Residual& a, const Residual& b) { return a.sq_dist < b.sq_dist; });
+    const Vec3d step = translation_step(std::span<const Residual>(residuals).first(keep));
+    d += step;
+    if (step.norm() < c.tolerance) break;
+  }
+  return d;
+}
+
+Vec3d mean_of(const std::vector<Vec3d>& points) {
+  Vec3d c = Vec3d::Zero();
+  for (const Vec3d& p : points) c += p;
+  return c / double(points.size());
+}
+
+}  // namespace
+
+ScaleFit fit_scale(std::span<const SegmentPair> pairs, const ScaleCheckConfig& config) {
+  config.validate();
+  std::vector<KdTree> trees;
+  std::vector<std::span<const Vec3f>> normals;
+  std::vector<std::vector<Vec3d>> sources;
+  for (const SegmentPair& p : pairs) {
+    for (const auto* cloud : {&p.source, &p.target})
+      for (const Vec3f& q : *cloud)
+        if (!q.allFinite()) throw InputError("fit_scale: non-finite point");
+    if (p.source.size() < kMinSegmentPoints || p.target.size() < kMinSegmentPoints) continue;
+    if (!p.target_normals.empty() && p.target_normals.size() != p.target.size())
+      throw InputError("fit_scale: a target segment has normals for some points only");
+    trees.emplace_back(p.target);
+    normals.emplace_back(p.target_normals);
+    sources.emplace_back();
+    for (const Vec3f& q : p.source) sources.back().push_back(q.cast<double>());
+  }
+  ScaleFit fit;
+  for (int round = 0; round < config.rounds; ++round) {
+    std::vector<Vec3d> from, to;  // segment centroids (as fitted so far) -> aligned
+    for (std::size_t k = 0; k < sources.size(); ++k) {
+      std::vector<Vec3d> moved;
+      for (const Vec3d& q : sources[k]) moved.push_back(fit.correction * q);
+      const std::optional<Vec3d> d = align_translation(moved, trees[k], normals[k], config);
+      if (!d) continue;
+      from.push_back(mean_of(sources[k]));
+      to.push_back(mean_of(moved) + *d);
+    }
+    fit.segments = from.size();
+    if (from.size() < kMinSegments) return ScaleFit{};
+    const Vec3d c = mean_of(from);
+    fit.extent = 0.0;
+    for (const Vec3d& p : from) fit.extent = std::max(fit.extent, (p - c).norm());
+    try {
+      fit.correction = umeyama(from, to, {.with_scale = true}).transform;
+    } catch (const InputError&) {  // collinear centroids: the scale is not observable
+      return ScaleFit{};
+    }
+  }
+  fit.scale = fit.correction.scale;
+  fit.observable = fit.extent >= config.min_extent;
+  return fit;
+}
+
+}  // namespace cairn

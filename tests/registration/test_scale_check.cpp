@@ -1,0 +1,77 @@
+// fit_scale (registration/scale_check.hpp): the check that tells a wrongly scaled source from the
+// matched segments, on known answers.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "cairn/core/error.hpp"
+#include "cairn/registration/scale_check.hpp"
+
+namespace cairn {
+namespace {
+
+/// Six boulders spread over an 8 m site (what matched segments look like), each sampled on its
+/// visible upper half (an ellipsoid cap, ~0.9 x 0.7 x 0.6 m) every few cm with noise.
+std::vector<std::vector<Vec3f>> boulders(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 0.005f);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const Vec3f centres[] = {{-3.0f, -2.5f, 0.3f}, {2.5f, -3.0f, 0.3f}, {0.5f, 3.0f, 0.3f},
+                           {-3.2f, 2.2f, 0.3f},  {3.4f, 1.0f, 0.3f},  {0.0f, 0.2f, 0.3f}};
+  std::vector<std::vector<Vec3f>> out;
+  for (const Vec3f& c : centres) {
+    std::vector<Vec3f> stone;
+    for (int i = 0; i < 3000; ++i) {
+      const float phi = 6.2831853f * u(rng), cos_t = u(rng);  // upper hemisphere
+      const float sin_t = std::sqrt(1.0f - cos_t * cos_t);
+      stone.push_back(c + Vec3f(0.45f * sin_t * std::cos(phi), 0.35f * sin_t * std::sin(phi), 0.3f * cos_t) +
+                      Vec3f(noise(rng), noise(rng), noise(rng)));
+    }
+    out.push_back(std::move(stone));
+  }
+  return out;
+}
+
+/// Pairs of the boulders: the source's scaled by k about `about` (the rest of a rigid fit's error
+/// is a shift), the target's as they are.
+std::vector<SegmentPair> pairs(float k, const Vec3f& about) {
+  const auto source = boulders(2), target = boulders(1);
+  std::vector<SegmentPair> out(source.size());
+  for (std::size_t s = 0; s < source.size(); ++s) {
+    for (const Vec3f& p : source[s]) out[s].source.push_back(about + k * (p - about));
+    out[s].target = target[s];
+  }
+  return out;
+}
+
+TEST(ScaleCheck, TheRightScaleFitsOne) {
+  const ScaleFit fit = fit_scale(pairs(1.0f, Vec3f::Zero()));
+  EXPECT_TRUE(fit.observable);
+  EXPECT_EQ(fit.segments, 6u);
+  EXPECT_GT(fit.extent, 3.0);
+  EXPECT_NEAR(fit.scale, 1.0, 1e-3);
+}
+
+TEST(ScaleCheck, RecoversScaleErrorsOfOneToTenPercentBothWays) {
+  for (const float k : {0.90f, 0.95f, 0.98f, 0.99f, 1.01f, 1.02f, 1.05f, 1.10f}) {
+    const ScaleFit fit = fit_scale(pairs(k, {0.7f, -0.4f, 0.0f}));
+    EXPECT_TRUE(fit.observable) << k;
+    EXPECT_NEAR(fit.scale * k, 1.0, 2e-3) << "source scaled by " << k << ": fitted " << fit.scale;
+  }
+}
+
+TEST(ScaleCheck, FewOrCloseSegmentsAreNotObservableAndBadInputIsRefused) {
+  std::vector<SegmentPair> two = pairs(1.05f, Vec3f::Zero());
+  two.resize(2);
+  EXPECT_FALSE(fit_scale(two).observable);  // a similarity needs three segments
+  const ScaleFit close = fit_scale(pairs(1.05f, Vec3f::Zero()), {.min_extent = 10.0});
+  EXPECT_FALSE(close.observable);  // spread over less than min_extent: no verdict
+  std::vector<SegmentPair> bad = pairs(1.0f, Vec3f::Zero());
+  bad[1].source[5].x() = std::nanf("");
+  EXPECT_THROW((void)fit_scale(bad), InputError);
+  EXPECT_THROW((void)fit_scale(two, {.max_scale_error = 0.0}), ConfigError);
+}
+
+}  // namespace
+}  // namespace cairn
