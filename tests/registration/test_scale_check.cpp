@@ -61,10 +61,26 @@ TEST(ScaleCheck, RecoversScaleErrorsOfOneToTenPercentBothWays) {
   }
 }
 
+TEST(ScaleCheck, ASegmentPairedWithAPieceOfItsStoneIsAnOutlier) {
+  // The target's segment 5 is the half of its stone facing -x (a stone the LiDAR split or saw
+  // from one side): its own alignment moves the source's whole stone by decimetres.
+  for (const float k : {1.0f, 1.05f}) {
+    std::vector<SegmentPair> p = pairs(k, {0.7f, -0.4f, 0.0f});
+    std::vector<Vec3f> half;
+    for (const Vec3f& q : p[5].target)
+      if (q.x() < 0.0f) half.push_back(q);
+    p[5].target = half;
+    const ScaleFit fit = fit_scale(p);
+    EXPECT_TRUE(fit.observable);
+    EXPECT_EQ(fit.segments, 5u) << k;
+    EXPECT_NEAR(fit.scale * k, 1.0, 2e-3) << "source scaled by " << k << ": fitted " << fit.scale;
+  }
+}
+
 TEST(ScaleCheck, FewOrCloseSegmentsAreNotObservableAndBadInputIsRefused) {
   std::vector<SegmentPair> two = pairs(1.05f, Vec3f::Zero());
-  two.resize(2);
-  EXPECT_FALSE(fit_scale(two).observable);  // a similarity needs three segments
+  two.resize(3);
+  EXPECT_FALSE(fit_scale(two).observable);  // fewer than min_segments (4)
   const ScaleFit close = fit_scale(pairs(1.05f, Vec3f::Zero()), {.min_extent = 10.0});
   EXPECT_FALSE(close.observable);  // spread over less than min_extent: no verdict
   std::vector<SegmentPair> bad = pairs(1.0f, Vec3f::Zero());

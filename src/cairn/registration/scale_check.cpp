@@ -23,12 +23,15 @@ void ScaleCheckConfig::validate() const {
   if (iterations < 1 || rounds < 1) throw ConfigError("registration.scale_check.iterations and rounds must be >= 1");
   if (!(tolerance > 0.0)) throw ConfigError("registration.scale_check.tolerance must be > 0");
   if (!(min_extent >= 0.0)) throw ConfigError("registration.scale_check.min_extent must be >= 0");
+  if (min_segments < 3) throw ConfigError("registration.scale_check.min_segments must be >= 3");
+  if (!(segment_inlier_distance > 0.0)) throw ConfigError("registration.scale_check.segment_inlier_distance must be > 0");
 }
 
 namespace {
 
 constexpr std::size_t kMinSegmentPoints = 10;  // fewer pairs move no segment
-constexpr std::size_t kMinSegments = 3;        // a similarity needs three non-collinear centroids
+constexpr int kRansacIterations = 200;         // triplets of segments (all of them when fewer)
+constexpr double kFirstRoundSlack = 4.0;       // the first round's inlier distance, in segment_inlier_distance
 
 constexpr double kMinConditioning = 1e-3;  // point-to-plane: smallest/largest eigenvalue of Σ n nᵀ
 
@@ -118,16 +121,27 @@ ScaleFit fit_scale(std::span<const SegmentPair> pairs, const ScaleCheckConfig& c
       from.push_back(mean_of(sources[k]));
       to.push_back(mean_of(moved) + *d);
     }
-    fit.segments = from.size();
-    if (from.size() < kMinSegments) return ScaleFit{};
-    const Vec3d c = mean_of(from);
-    fit.extent = 0.0;
-    for (const Vec3d& p : from) fit.extent = std::max(fit.extent, (p - c).norm());
+    if (from.size() < std::size_t(config.min_segments)) return ScaleFit{};
+    // RANSAC over triplets: a segment paired with a piece of its stone (or a stone seen from one
+    // side only) is moved by decimetres that no similarity explains.
+    RobustUmeyamaResult robust;
     try {
-      fit.correction = umeyama(from, to, {.with_scale = true}).transform;
-    } catch (const InputError&) {  // collinear centroids: the scale is not observable
+      // The first round starts from the rigid fit, where a large scale error leaves the segments'
+      // own alignments only roughly consistent (a stone 10 % too large); later rounds start from the
+      // similarity.
+      const double inlier = config.segment_inlier_distance * (round == 0 ? kFirstRoundSlack : 1.0);
+      robust = robust_umeyama(from, to, {.fit = {.with_scale = true}, .inlier_threshold = inlier,
+                                         .iterations = kRansacIterations, .min_inliers = config.min_segments, .seed = 1});
+    } catch (const InputError&) {  // no consensus, or collinear centroids: not observable
       return ScaleFit{};
     }
+    fit.correction = robust.transform;
+    fit.segments = robust.inliers.size();
+    Vec3d c = Vec3d::Zero();
+    for (std::uint32_t i : robust.inliers) c += from[i];
+    c /= double(robust.inliers.size());
+    fit.extent = 0.0;
+    for (std::uint32_t i : robust.inliers) fit.extent = std::max(fit.extent, (from[i] - c).norm());
   }
   fit.scale = fit.correction.scale;
   fit.observable = fit.extent >= config.min_extent;

@@ -30,8 +30,12 @@ struct ScaleCheckConfig {
   int iterations = 30;     // of a segment's translation ICP
   double tolerance = 1e-4; // [m] a segment's ICP converged when its step is below this
   int rounds = 3;          // segments re-aligned after applying the fitted similarity
-  /// The segments' centroids must span at least this [m] (largest distance from their mean) for
-  /// the scale to be observable; otherwise no check.
+  /// The similarity is fitted robustly (RANSAC over triplets of segments): a segment is an inlier
+  /// when the similarity puts it within this of where its own alignment did [m]; at least
+  /// min_segments inliers spanning min_extent [m] (largest distance from their mean) make the
+  /// scale observable, otherwise no check.
+  double segment_inlier_distance = 0.04;
+  int min_segments = 4;
   double min_extent = 2.0;
 
   template <class V>
@@ -46,7 +50,10 @@ struct ScaleCheckConfig {
     v("iterations", iterations, "iterations of a segment's translation ICP at most");
     v("tolerance", tolerance, "a segment's translation ICP converged when its step is below this [m]");
     v("rounds", rounds, "segments re-aligned after applying the fitted similarity");
-    v("min_extent", min_extent, "the segments' centroids must span this for the scale to be observable [m]");
+    v("segment_inlier_distance", segment_inlier_distance,
+      "a segment is an inlier of the fitted similarity when within this of its own alignment [m]");
+    v("min_segments", min_segments, "inlier segments needed for the scale to be observable");
+    v("min_extent", min_extent, "the inlier segments' centroids must span this for the scale to be observable [m]");
   }
   /// Throws ConfigError naming the key.
   void validate() const;
@@ -60,17 +67,17 @@ struct SegmentPair {
 };
 
 struct ScaleFit {
-  bool observable = false;  // >= 3 segments aligned, their centroids spread over min_extent
+  bool observable = false;  // >= min_segments inlier segments, spread over min_extent
   double scale = 1.0;       // of the similarity that fits the aligned source to the target
   Similarity correction;    // target ≈ correction · aligned source
-  std::size_t segments = 0; // segments that took part
+  std::size_t segments = 0; // inlier segments of the robust fit
   double extent = 0.0;      // [m] largest distance of a segment centroid from their mean
 };
 
 /// Each pair's source segment aligned to its target segment by a trimmed translation ICP
 /// (point-to-plane where the target has normals: partial views slide along each other); the
-/// similarity (Umeyama, with scale) from the segments' centroids to where their alignments put
-/// them; repeated `rounds` times from the similarity. Throws InputError on non-finite points,
+/// similarity (RANSAC over triplets, then Umeyama with scale on the inliers) from the segments'
+/// centroids to where their alignments put them; repeated `rounds` times from the similarity. Throws InputError on non-finite points,
 /// ConfigError on a bad config.
 [[nodiscard]] ScaleFit fit_scale(std::span<const SegmentPair> pairs, const ScaleCheckConfig& config = {});
 
