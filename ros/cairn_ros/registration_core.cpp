@@ -30,7 +30,8 @@ void RegistrationCore::set_map(const file::Cloud& map) { impl_->map.set(map); }
 void RegistrationCore::set_drone_cloud(const file::Cloud& cloud) { impl_->drone.set(cloud); }
 
 RegistrationAnswer RegistrationCore::register_drone(const std::string& cloud_file, const std::string& sfm,
-                                                    const std::string& metric, bool gravity_aligned) {
+                                                    const std::string& metric, bool gravity_aligned,
+                                                    bool estimate_scale) {
   const std::shared_ptr<const PointCloud> map = impl_->map.get();
   if (!map) throw InputError("cairn_registration: no map received yet");
   std::shared_ptr<const PointCloud> drone = impl_->drone.get();
@@ -40,6 +41,7 @@ RegistrationAnswer RegistrationCore::register_drone(const std::string& cloud_fil
                      impl_->config.bag.drone_cloud + ")");
   GlobalRegistrationConfig registration = impl_->config.registration;
   if (gravity_aligned) registration.gravity_aligned = true;
+  if (estimate_scale) registration.scale_check.estimate = true;
   const DroneRegistration d = cairn::register_drone(*drone, *map, sfm, metric,
                                                     impl_->config.segmentation, registration, impl_->config.scale);
   RegistrationAnswer out;

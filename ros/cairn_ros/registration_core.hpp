@@ -33,10 +33,12 @@ class RegistrationCore {
   void set_map(const file::Cloud& map);
   void set_drone_cloud(const file::Cloud& cloud);
   /// Registers the cloud of `cloud_file` (empty: the newest drone cloud received) into the newest
-  /// map; `sfm` + `metric` (files, both or none) recover its scale first. Throws InputError on
+  /// map; `sfm` + `metric` (files, both or none) recover its scale first; `estimate_scale`: 7-DoF
+  /// (registration.scale_check.estimate). Throws InputError on
   /// bad input (no map yet, no drone cloud, unreadable files).
   [[nodiscard]] RegistrationAnswer register_drone(const std::string& cloud_file, const std::string& sfm,
-                                                  const std::string& metric, bool gravity_aligned);
+                                                  const std::string& metric, bool gravity_aligned,
+                                                  bool estimate_scale = false);
 
  private:
   struct Impl;

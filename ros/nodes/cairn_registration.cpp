@@ -44,7 +44,8 @@ class RegistrationNode {
  private:
   bool answer(cairn_ros::RegisterDrone::Request& req, cairn_ros::RegisterDrone::Response& res) {
     const std::string error = cairn::node::guarded("cairn_registration", errors_, [&] {
-      cairn::bag::RegistrationAnswer a = core_.register_drone(req.cloud_file, req.sfm, req.metric, req.gravity_aligned);
+      cairn::bag::RegistrationAnswer a = core_.register_drone(req.cloud_file, req.sfm, req.metric, req.gravity_aligned,
+                                                                 req.estimate_scale);
       res.success = a.success;
       res.message = a.message;
       for (std::size_t i = 0; i < 16; ++i) res.T_map_drone[i] = a.T_map_drone[i];

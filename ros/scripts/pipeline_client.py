@@ -26,6 +26,7 @@ def main():
     parser.add_argument("--sweeps", type=int, required=True, help="sweeps in the bag (wait for all)")
     parser.add_argument("--sfm", default="", help="the drone's COLMAP text model (scale recovery)")
     parser.add_argument("--metric", default="", help="the drone's metric TUM trajectory (scale recovery)")
+    parser.add_argument("--estimate-scale", action="store_true", help="7-DoF registration (the scale estimated)")
     parser.add_argument("--timeout", type=float, default=300.0, help="[s] waiting for the sweeps")
     a = parser.parse_args(rospy.myargv()[1:])
     rospy.init_node("cairn_pipeline_client", anonymous=True)
@@ -36,7 +37,7 @@ def main():
         time.sleep(0.5)
     print("mapper:", call("/cairn_mapper/finish", Trigger).message, flush=True)
     time.sleep(2.0)  # the base station's nodes take the final map
-    reg = call("/cairn_registration/register", RegisterDrone, "", a.sfm, a.metric, False)
+    reg = call("/cairn_registration/register", RegisterDrone, "", a.sfm, a.metric, False, a.estimate_scale)
     print("registration:", "success" if reg.success else "failed: " + reg.message, flush=True)
     time.sleep(2.0)  # the objects node takes the merged map
     seg = call("/cairn_objects/segment", Trigger)

@@ -86,7 +86,7 @@ class PipelineAgainstTheTruth(unittest.TestCase):
         # Registration of the drone cloud (SfM frame, from the bag's topic) with scale recovery.
         drone = os.path.join(self.run, "drone")
         reg = self.call("/cairn_registration/register", RegisterDrone, "", os.path.join(drone, "sparse"),
-                        os.path.join(drone, "vins_trajectory.tum"), False)
+                        os.path.join(drone, "vins_trajectory.tum"), False, False)
         self.assertTrue(reg.success, reg.message)
         estimate = matrix(reg.T_map_drone)
         at = [sum(c[i] for c in self.stones) / len(self.stones) for i in range(3)]  # the stones' centre

@@ -88,6 +88,25 @@ TEST(RegistrationCore, RegistersTheDroneCloudLikeTheCliWithinTheProtocolsBounds)
                                                s.run.drone_vins, {}, {}, {});
   EXPECT_EQ(j.at("T_target_source"), to_json(cli).at("T_target_source"));
   EXPECT_EQ(j.at("matched_segments"), cli.result.matched_segments.size());
+  // A drone cloud 5 % too large (its SfM points scaled, the cameras not): refused for its scale,
+  // registered with estimate_scale (the service's flag reaches the library).
+  file::Cloud large = cloud_of(io::load_cloud(s.run.drone_cloud), 8.0, "drone_sfm");
+  for (float& v : large.xyz) v *= 1.05f;
+  core.set_drone_cloud(large);
+  const RegistrationAnswer refused = core.register_drone("", s.run.drone_sparse.string(), s.run.drone_vins.string(), false);
+  EXPECT_FALSE(refused.success);
+  EXPECT_EQ(refused.message.rfind("scale", 0), 0u) << refused.message;
+  const RegistrationAnswer seven =
+      core.register_drone("", s.run.drone_sparse.string(), s.run.drone_vins.string(), false, true);
+  ASSERT_TRUE(seven.success) << seven.message;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) T(r, c) = seven.T_map_drone[std::size_t(4 * r + c)];
+  Similarity K;  // the 5 % the SfM points were scaled by: the estimate after it is the truth
+  K.scale = 1.05;
+  const RegistrationError e7 = registration_error(Similarity::from_matrix(T) * K, s.T_map_drone, stones_centre(s));
+  EXPECT_NEAR(e7.scale_ratio, 1.0, 0.005);
+  EXPECT_LT(e7.rotation_deg, kMaxRotationDeg);
+  EXPECT_LT(e7.translation_m, kMaxTranslation);
 }
 
 /// The map merged with the registered drone cloud, as cairn_registration publishes it.
