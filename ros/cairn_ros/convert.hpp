@@ -1,6 +1,7 @@
 #pragma once
 // The plain data of bag_file.hpp <-> cairn's types (C++20 side of the ROS layer).
 #include <Eigen/Geometry>
+#include <cmath>
 #include <string>
 
 #include "cairn/core/error.hpp"
@@ -15,9 +16,16 @@ inline file::Transform to_file(const Eigen::Isometry3d& T) {
   return {{T.translation().x(), T.translation().y(), T.translation().z()}, {q.x(), q.y(), q.z(), q.w()}};
 }
 
+/// Throws InputError unless the quaternion is (close to) a unit one — a default-constructed ROS
+/// pose has all zeros — or a value is not finite.
 inline Eigen::Isometry3d from_file(const file::Transform& T) {
+  constexpr double kUnitTolerance = 1e-3;  // |q| may differ from 1 by this (float round trips)
+  const Eigen::Quaterniond q(T.q[3], T.q[0], T.q[1], T.q[2]);
+  if (!q.coeffs().allFinite() || !Eigen::Vector3d(T.t[0], T.t[1], T.t[2]).allFinite() ||
+      std::abs(q.norm() - 1.0) > kUnitTolerance)
+    throw InputError("a pose needs finite values and a unit quaternion (|q| = " + std::to_string(q.norm()) + ")");
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.linear() = Eigen::Quaterniond(T.q[3], T.q[0], T.q[1], T.q[2]).normalized().toRotationMatrix();
+  out.linear() = q.normalized().toRotationMatrix();
   out.translation() = Eigen::Vector3d(T.t[0], T.t[1], T.t[2]);
   return out;
 }

@@ -50,9 +50,12 @@ std::vector<GripperBox> parts_in_map(const grasp::Grasp& g, const GripperConfig&
 }  // namespace
 
 GraspAnswer GraspCore::plan(std::int64_t id) const {
-  const std::shared_ptr<const PointCloud> map = impl_->map.get(), drone = impl_->drone.get();
+  const std::shared_ptr<const PointCloud> map = impl_->map.get();
   if (!map) throw InputError("cairn_grasp: no map received yet");
   const ObjectDatabase db(impl_->database, ObjectDatabase::Mode::read_only);
+  // The drone's survey completes the planning cloud until something was grasped (Sec. 5.2; the
+  // experiments use it for a stone's first move only): then it shows stones where they no longer are.
+  const std::shared_ptr<const PointCloud> drone = any_grasp_stored(db) ? nullptr : impl_->drone.get();
   const ObjectRecord object = object_to_grasp(db, id > 0 ? std::optional<std::int64_t>(id) : std::nullopt);
   const GripperConfig& gripper = impl_->config.simulation.gripper;
   const grasp::GraspPlanning p =

@@ -42,7 +42,8 @@ class GraspCore {
 
   void set_map(const file::Cloud& map);
   void set_drone_cloud(const file::Cloud& aligned);
-  /// Grasps of object `id` (0: the largest that is not lost, Sec. 5.1). Throws InputError on bad
+  /// Grasps of object `id` (0: the largest that is not lost, Sec. 5.1), with the drone cloud until
+  /// the database holds a grasp (any_grasp_stored). Throws InputError on bad
   /// input (no map yet, unknown object); an answer without grasps when none passes.
   [[nodiscard]] GraspAnswer plan(std::int64_t id) const;
 

@@ -56,7 +56,12 @@ ObjectsCore::~ObjectsCore() = default;
 
 void ObjectsCore::set_map(const file::Cloud& map) { impl_->map.set(map); }
 
-void ObjectsCore::set_merged_map(const file::Cloud& merged) { impl_->merged.set(merged); }
+void ObjectsCore::set_merged_map(const file::Cloud& merged) {
+  const std::lock_guard lock(impl_->mutex);
+  // The drone's survey shows the site before anything moved: once a grasp is stored (in this run
+  // or an earlier one of the same database) a re-sent merged map is stale.
+  if (!any_grasp_stored(impl_->db)) impl_->merged.set(merged);
+}
 
 bool ObjectsCore::has_map() const { return impl_->map.get() != nullptr; }
 

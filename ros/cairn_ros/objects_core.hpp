@@ -37,8 +37,9 @@ class ObjectsCore {
 
   void set_map(const file::Cloud& map);
   /// The map merged with the registered drone cloud (cairn_registration, Sec. 4.4): segmented
-  /// instead of the LiDAR map until the first grasp (the drone's survey shows the site as it was
-  /// before anything moved; early LiDAR maps miss what the cabin has not swept yet).
+  /// instead of the LiDAR map until the first grasp, and ignored once the database holds a grasp
+  /// (the drone's survey shows the site as it was before anything moved; early LiDAR maps miss
+  /// what the cabin has not swept yet).
   void set_merged_map(const file::Cloud& merged);
   [[nodiscard]] bool has_map() const;
   /// Segments the merged map while it holds, else the newest LiDAR map (Sec. 4.3), and associates the segments with the stored objects

@@ -3,7 +3,7 @@
 // `cairn grasp`. C++17 (roscpp).
 //
 // Subscribes: ~map_topic (PointCloud2, default /cairn_mapper/map), ~drone_topic (PointCloud2,
-// default /cairn_registration/aligned: the registered drone cloud, used when there is one).
+// default /cairn_registration/aligned: the registered drone cloud, used until the database holds a grasp).
 // Service ~plan (cairn_ros/PlanGrasps: object id -> ranked grasps; 0 = the largest object).
 // Publishes ~grasps (geometry_msgs/PoseArray, latched) and ~markers (MarkerArray, latched: the
 // gripper's palm and jaws at each grasp, the best opaque). Parameters: ~database (the objects

@@ -20,6 +20,7 @@
 #include <std_srvs/Trigger.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <algorithm>
 #include <string>
 
 #include "cairn_ros/objects_core.hpp"
@@ -41,11 +42,14 @@ class ObjectsNode {
     map_sub_ = nh.subscribe<sensor_msgs::PointCloud2>(map_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
       guarded([&] {
         core_.set_map(file::from_msg(*m, true, "map"));
-        map_time_ = m->header.stamp.toSec();
+        map_time_ = std::max(map_time_, m->header.stamp.toSec());
       });
     });
     merged_sub_ = nh.subscribe<sensor_msgs::PointCloud2>(merged_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-      guarded([&] { core_.set_merged_map(file::from_msg(*m, true, "merged map")); });
+      guarded([&] {
+        core_.set_merged_map(file::from_msg(*m, true, "merged map"));
+        map_time_ = std::max(map_time_, m->header.stamp.toSec());  // segmenting it before a LiDAR map came
+      });
     });
     markers_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("markers", 1, /*latch=*/true);
     objects_pub_ = pnh.advertise<std_msgs::String>("objects", 1, /*latch=*/true);
@@ -71,12 +75,10 @@ class ObjectsNode {
   }
   template <class F>
   bool trigger(std_srvs::Trigger::Response& res, F&& f) {
-    const std::string error = guarded([&] {
-      res.message = f();
-      publish();
-    });
+    const std::string error = guarded([&] { res.message = f(); });
     res.success = error.empty();
     if (!res.success) res.message = error;
+    guarded([&] { publish(); });  // what is stored is answered as stored, whatever publishing does
     return true;
   }
 
@@ -88,14 +90,17 @@ class ObjectsNode {
   }
   template <class Event>
   bool event(const cairn_ros::ObjectEvent::Request& req, cairn_ros::ObjectEvent::Response& res, Event e) {
-    const std::string error = guarded([&] {
-      const cairn::bag::ObjectEventAnswer a = (core_.*e)(req.object_id, file::from_pose(req.gripper), req.time);
-      res.json = a.json;
+    cairn::bag::ObjectEventAnswer a;
+    const std::string error =
+        guarded([&] { a = (core_.*e)(req.object_id, file::from_pose(req.gripper), req.time); });
+    res.success = error.empty();
+    res.message = error;
+    res.json = a.json;
+    // Stored: answered as stored, whatever publishing does.
+    guarded([&] {
       for (const file::MapEdit& edit : a.edits) edits_pub_.publish(cairn::node::to_msg(edit, map_frame_));
       publish();
     });
-    res.success = error.empty();
-    res.message = error;
     return true;
   }
 

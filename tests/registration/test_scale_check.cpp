@@ -11,9 +11,12 @@
 namespace cairn {
 namespace {
 
+constexpr float kA = 0.45f, kB = 0.35f, kC = 0.3f;  // the boulders' semi-axes [m]
+
 /// Six boulders spread over an 8 m site (what matched segments look like), each sampled on its
-/// visible upper half (an ellipsoid cap, ~0.9 x 0.7 x 0.6 m) every few cm with noise.
-std::vector<std::vector<Vec3f>> boulders(std::uint64_t seed) {
+/// visible upper half (an ellipsoid cap, ~0.9 x 0.7 x 0.6 m) every few cm with noise; `normals`
+/// gets the ellipsoid's outward normals when given.
+std::vector<std::vector<Vec3f>> boulders(std::uint64_t seed, std::vector<std::vector<Vec3f>>* normals = nullptr) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<float> noise(0.0f, 0.005f);
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
@@ -25,8 +28,12 @@ std::vector<std::vector<Vec3f>> boulders(std::uint64_t seed) {
     for (int i = 0; i < 3000; ++i) {
       const float phi = 6.2831853f * u(rng), cos_t = u(rng);  // upper hemisphere
       const float sin_t = std::sqrt(1.0f - cos_t * cos_t);
-      stone.push_back(c + Vec3f(0.45f * sin_t * std::cos(phi), 0.35f * sin_t * std::sin(phi), 0.3f * cos_t) +
-                      Vec3f(noise(rng), noise(rng), noise(rng)));
+      const Vec3f e(kA * sin_t * std::cos(phi), kB * sin_t * std::sin(phi), kC * cos_t);
+      stone.push_back(c + e + Vec3f(noise(rng), noise(rng), noise(rng)));
+      if (normals) {
+        if (normals->size() < out.size() + 1) normals->emplace_back();
+        normals->back().push_back(Vec3f(e.x() / (kA * kA), e.y() / (kB * kB), e.z() / (kC * kC)).normalized());
+      }
     }
     out.push_back(std::move(stone));
   }
@@ -34,13 +41,16 @@ std::vector<std::vector<Vec3f>> boulders(std::uint64_t seed) {
 }
 
 /// Pairs of the boulders: the source's scaled by k about `about` (the rest of a rigid fit's error
-/// is a shift), the target's as they are.
-std::vector<SegmentPair> pairs(float k, const Vec3f& about) {
-  const auto source = boulders(2), target = boulders(1);
+/// is a shift), the target's as they are, with their normals when `with_normals` (point-to-plane,
+/// as register_global passes them).
+std::vector<SegmentPair> pairs(float k, const Vec3f& about, bool with_normals = false) {
+  std::vector<std::vector<Vec3f>> normals;
+  const auto source = boulders(2), target = boulders(1, &normals);
   std::vector<SegmentPair> out(source.size());
   for (std::size_t s = 0; s < source.size(); ++s) {
     for (const Vec3f& p : source[s]) out[s].source.push_back(about + k * (p - about));
     out[s].target = target[s];
+    if (with_normals) out[s].target_normals = normals[s];
   }
   return out;
 }
@@ -54,11 +64,13 @@ TEST(ScaleCheck, TheRightScaleFitsOne) {
 }
 
 TEST(ScaleCheck, RecoversScaleErrorsOfOneToTenPercentBothWays) {
-  for (const float k : {0.90f, 0.95f, 0.98f, 0.99f, 1.01f, 1.02f, 1.05f, 1.10f}) {
-    const ScaleFit fit = fit_scale(pairs(k, {0.7f, -0.4f, 0.0f}));
-    EXPECT_TRUE(fit.observable) << k;
-    EXPECT_NEAR(fit.scale * k, 1.0, 2e-3) << "source scaled by " << k << ": fitted " << fit.scale;
-  }
+  for (const bool point_to_plane : {false, true})
+    for (const float k : {0.90f, 0.95f, 0.98f, 0.99f, 1.01f, 1.02f, 1.05f, 1.10f}) {
+      const ScaleFit fit = fit_scale(pairs(k, {0.7f, -0.4f, 0.0f}, point_to_plane));
+      EXPECT_TRUE(fit.observable) << k;
+      EXPECT_NEAR(fit.scale * k, 1.0, 2e-3)
+          << (point_to_plane ? "point-to-plane" : "point-to-point") << ", source scaled by " << k << ": fitted " << fit.scale;
+    }
 }
 
 TEST(ScaleCheck, ASegmentPairedWithAPieceOfItsStoneIsAnOutlier) {
@@ -86,6 +98,9 @@ TEST(ScaleCheck, FewOrCloseSegmentsAreNotObservableAndBadInputIsRefused) {
   std::vector<SegmentPair> bad = pairs(1.0f, Vec3f::Zero());
   bad[1].source[5].x() = std::nanf("");
   EXPECT_THROW((void)fit_scale(bad), InputError);
+  std::vector<SegmentPair> partial = pairs(1.0f, Vec3f::Zero(), true);
+  partial[2].target_normals.pop_back();  // normals for some points only
+  EXPECT_THROW((void)fit_scale(partial), InputError);
   EXPECT_THROW((void)fit_scale(two, {.max_scale_error = 0.0}), ConfigError);
 }
 

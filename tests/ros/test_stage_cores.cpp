@@ -4,6 +4,7 @@
 // restarts, and bad input as InputErrors.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -149,6 +150,9 @@ TEST(ObjectsCore, OneObjectPerStoneGraspReleaseAndKeptAcrossRestarts) {
     // Grasp: stored, and the map edit of the object's own voxels (the R_obj sphere the bound).
     file::Transform G{{largest_centroid.x(), largest_centroid.y(), largest_centroid.z() + 1.0}, {0, 0, 0, 1}};
     EXPECT_THROW((void)core.grasp(9999, G, 9.0), InputError);
+    // A default ROS pose (all-zero quaternion) is bad input, never a stored grasp.
+    EXPECT_THROW((void)core.grasp(largest, file::Transform{{0, 0, 0}, {0, 0, 0, 0}}, 9.0), InputError);
+    EXPECT_EQ(ObjectDatabase(db, ObjectDatabase::Mode::read_only).object(largest)->status, ObjectStatus::on_ground);
     const ObjectEventAnswer grasped = core.grasp(largest, G, 9.0);
     EXPECT_EQ(nlohmann::json::parse(grasped.json).at("status"), "grasped");
     ASSERT_EQ(grasped.edits.size(), 1u);
@@ -176,11 +180,9 @@ TEST(ObjectsCore, OneObjectPerStoneGraspReleaseAndKeptAcrossRestarts) {
   ObjectsCore again("", {}, db.string());
   const std::vector<ObjectView> objects = again.objects(0.0);
   EXPECT_EQ(objects.size(), s.stones.size());
-  for (const ObjectView& o : objects) {
-    if (o.id == largest) {
-      EXPECT_EQ(o.status, "placed");
-    }
-  }
+  const auto held = std::find_if(objects.begin(), objects.end(), [&](const ObjectView& o) { return o.id == largest; });
+  ASSERT_NE(held, objects.end());
+  EXPECT_EQ(held->status, "placed");
 }
 
 TEST(GraspCore, PlansTheLargestObjectAndDrawsTheGripper) {

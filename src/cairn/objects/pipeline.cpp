@@ -80,6 +80,12 @@ nlohmann::json association_json(const ObjectsUpdate& u) {
           {"ignored_segments", a.ignored_segments}};
 }
 
+bool any_grasp_stored(const ObjectDatabase& db) {
+  for (const OperationRecord& op : db.operations())
+    if (op.kind == "grasp") return true;
+  return false;
+}
+
 ObjectRecord object_to_grasp(const ObjectDatabase& db, std::optional<std::int64_t> id) {
   if (id) {
     std::optional<ObjectRecord> r = db.object(*id);

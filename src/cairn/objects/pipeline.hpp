@@ -29,6 +29,10 @@ ObjectsUpdate update_objects(ObjectDatabase& db, const PointCloud& map, const st
 /// points) that is not lost. Throws InputError naming the database when there is none.
 [[nodiscard]] ObjectRecord object_to_grasp(const ObjectDatabase& db, std::optional<std::int64_t> id);
 
+/// Whether the database holds a grasp (in any run): a drone survey taken before it no longer
+/// shows the site (the objects and grasp nodes stop using the registered drone cloud then).
+[[nodiscard]] bool any_grasp_stored(const ObjectDatabase& db);
+
 // ---- JSON (the `cairn objects` contract, docs/objects.md) -------------------------------------
 [[nodiscard]] nlohmann::json object_summary_json(const ObjectRecord& r);  // id, status, centroid, num_points, updates
 [[nodiscard]] nlohmann::json object_json(const ObjectRecord& r);          // + reason, source, bounds, grasp

@@ -1,6 +1,7 @@
 #include "cairn/registration/drone_registration.hpp"
 
 #include <cmath>
+#include <optional>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/colmap.hpp"
@@ -25,8 +26,12 @@ DroneRegistration register_drone(PointCloud source, const PointCloud& target, co
   }
   // 7-DoF (scale_check.estimate): rescale by the fitted scale and register again while it is off.
   Similarity T_scaled = T_metric_sfm;
+  std::optional<DroneRegistration> last_success;  // a later pass that fails does not undo it
   for (;; ++out.passes) {
     out.result = register_global(source, target, segmentation, registration);
+    out.T_target_source = Similarity::from_isometry(out.result.T_target_source) * T_scaled;
+    if (!out.result.success && last_success) return std::move(*last_success);
+    if (out.result.success) last_success = out;
     const ScaleFit& fit = out.result.scale_fit;
     const ScaleCheckConfig& check = registration.scale_check;
     const bool scale_refused = !out.result.success && fit.observable && std::abs(fit.scale - 1.0) > check.max_scale_error;
@@ -41,7 +46,6 @@ DroneRegistration register_drone(PointCloud source, const PointCloud& target, co
     T_scaled = S * T_scaled;
     out.estimated_scale *= fit.scale;
   }
-  out.T_target_source = Similarity::from_isometry(out.result.T_target_source) * T_scaled;
   return out;
 }
 

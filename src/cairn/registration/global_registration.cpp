@@ -246,7 +246,6 @@ std::pair<Eigen::Isometry3d, double> refine_two_pass(std::span<const Vec3f> sour
   return {T, r2.rmse};
 }
 
-/// The whole cloud as one set (segments = false).
 /// The matched segment pairs' points for the scale check, the source's moved by T.
 std::vector<SegmentPair> segment_pairs(const SegmentSet& src, const SegmentSet& tgt, const Verification& v,
                                        const Eigen::Isometry3d& T) {
@@ -264,6 +263,7 @@ std::vector<SegmentPair> segment_pairs(const SegmentSet& src, const SegmentSet& 
   return out;
 }
 
+/// The whole cloud as one set (segments = false).
 SegmentSet whole_cloud(std::span<const Vec3f> points) {
   SegmentSet s;
   s.points.assign(points.begin(), points.end());
@@ -627,7 +627,10 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
                   "(recover its scale, or estimate it: registration.scale_check.estimate / --estimate-scale)",
                   100.0 * std::abs(1.0 / r.scale_fit.scale - 1.0), r.scale_fit.scale > 1.0 ? "smaller" : "larger");
     r.reason = why;
+    if (accepted) r.reports[*accepted].accepted = false;  // refused after all
     accepted.reset();
+    r.rmse = r.reports[*checked].rmse;  // the figures of the candidate the check refused
+    r.overlap = r.reports[*checked].overlap;
   }
 
   if (!accepted) {
@@ -637,7 +640,7 @@ GlobalRegistrationResult register_global(const PointCloud& source, const PointCl
                    ? "no geometrically consistent group of correspondences and no centroid hypothesis"
                    : "no candidate matches " + std::to_string(cfg.acceptance.min_matched_segments) +
                          " segment centroids within d_match";
-    if (!r.reports.empty() && r.reports.front().refined) {  // else rmse/overlap stay unmeasured (0)
+    if (r.rmse == 0.0 && !r.reports.empty() && r.reports.front().refined) {  // else unmeasured (0)
       r.rmse = r.reports.front().rmse;
       r.overlap = r.reports.front().overlap;
     }
