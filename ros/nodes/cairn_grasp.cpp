@@ -32,12 +32,10 @@ class GraspNode {
   GraspNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, GraspCore& core, const std::string& map_topic,
             const std::string& drone_topic, std::string map_frame, int marker_grasps)
       : core_(core), map_frame_(std::move(map_frame)), marker_grasps_(marker_grasps) {
-    subs_.push_back(nh.subscribe<sensor_msgs::PointCloud2>(map_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-      guarded([&] { core_.set_map(file::from_msg(*m, true, "map")); });
-    }));
-    subs_.push_back(nh.subscribe<sensor_msgs::PointCloud2>(drone_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-      guarded([&] { core_.set_drone_cloud(file::from_msg(*m, true, "drone cloud")); });
-    }));
+    subs_.push_back(cairn::node::subscribe_cloud(nh, map_topic, "cairn_grasp", errors_, "map",
+                                                 [this](const file::Cloud& c, double) { core_.set_map(c); }));
+    subs_.push_back(cairn::node::subscribe_cloud(nh, drone_topic, "cairn_grasp", errors_, "drone cloud",
+                                                 [this](const file::Cloud& c, double) { core_.set_drone_cloud(c); }));
     grasps_pub_ = pnh.advertise<geometry_msgs::PoseArray>("grasps", 1, /*latch=*/true);
     markers_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("markers", 1, /*latch=*/true);
     service_ = pnh.advertiseService("plan", &GraspNode::plan, this);

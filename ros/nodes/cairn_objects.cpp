@@ -39,18 +39,16 @@ class ObjectsNode {
   ObjectsNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, ObjectsCore& core, const std::string& map_topic,
               const std::string& merged_topic, std::string map_frame, double view_voxel)
       : core_(core), map_frame_(std::move(map_frame)), view_voxel_(view_voxel) {
-    map_sub_ = nh.subscribe<sensor_msgs::PointCloud2>(map_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-      guarded([&] {
-        core_.set_map(file::from_msg(*m, true, "map"));
-        map_time_ = std::max(map_time_, m->header.stamp.toSec());
-      });
-    });
-    merged_sub_ = nh.subscribe<sensor_msgs::PointCloud2>(merged_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-      guarded([&] {
-        core_.set_merged_map(file::from_msg(*m, true, "merged map"));
-        map_time_ = std::max(map_time_, m->header.stamp.toSec());  // segmenting it before a LiDAR map came
-      });
-    });
+    map_sub_ = cairn::node::subscribe_cloud(nh, map_topic, "cairn_objects", errors_, "map",
+                                            [this](const file::Cloud& c, double stamp) {
+                                              core_.set_map(c);
+                                              map_time_ = std::max(map_time_, stamp);
+                                            });
+    merged_sub_ = cairn::node::subscribe_cloud(nh, merged_topic, "cairn_objects", errors_, "merged map",
+                                               [this](const file::Cloud& c, double stamp) {
+                                                 core_.set_merged_map(c);
+                                                 map_time_ = std::max(map_time_, stamp);  // segmented before a LiDAR map came
+                                               });
     markers_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("markers", 1, /*latch=*/true);
     objects_pub_ = pnh.advertise<std_msgs::String>("objects", 1, /*latch=*/true);
     edits_pub_ = pnh.advertise<cairn_ros::MapEdit>("map_edits", 10);

@@ -27,14 +27,11 @@ class RegistrationNode {
   RegistrationNode(ros::NodeHandle& nh, ros::NodeHandle& pnh, RegistrationCore& core, const std::string& map_topic,
                    std::string map_frame)
       : core_(core), map_frame_(std::move(map_frame)) {
-    subs_.push_back(nh.subscribe<sensor_msgs::PointCloud2>(map_topic, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-      cairn::node::guarded("cairn_registration", errors_, [&] { core_.set_map(file::from_msg(*m, true, "map")); });
-    }));
-    subs_.push_back(nh.subscribe<sensor_msgs::PointCloud2>(
-        core.topics().drone_cloud, 1, [this](const sensor_msgs::PointCloud2ConstPtr& m) {
-          cairn::node::guarded("cairn_registration", errors_,
-                               [&] { core_.set_drone_cloud(file::from_msg(*m, true, "drone cloud")); });
-        }));
+    subs_.push_back(cairn::node::subscribe_cloud(nh, map_topic, "cairn_registration", errors_, "map",
+                                                 [this](const file::Cloud& c, double) { core_.set_map(c); }));
+    subs_.push_back(cairn::node::subscribe_cloud(nh, core.topics().drone_cloud, "cairn_registration", errors_,
+                                                 "drone cloud",
+                                                 [this](const file::Cloud& c, double) { core_.set_drone_cloud(c); }));
     aligned_pub_ = pnh.advertise<sensor_msgs::PointCloud2>("aligned", 1, /*latch=*/true);
     merged_pub_ = pnh.advertise<sensor_msgs::PointCloud2>("merged", 1, /*latch=*/true);
     result_pub_ = pnh.advertise<std_msgs::String>("result", 1, /*latch=*/true);

@@ -3,6 +3,7 @@
 // callbacks that report bad input instead of ending the node, the map-edit message.
 #include <cairn_ros/MapEdit.h>
 #include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
 
 #include <exception>
 #include <string>
@@ -39,6 +40,17 @@ std::string guarded(const char* node, std::size_t& errors, F&& f) {
     ++errors;
     return e.what()[0] ? e.what() : "error";
   }
+}
+
+/// Subscribes to the newest cloud on `topic` (queue 1, a latched map or drone cloud): each message
+/// decoded and handed to `take(cloud, stamp)`; a bad one logged and counted (guarded), never fatal.
+template <class F>
+ros::Subscriber subscribe_cloud(ros::NodeHandle& nh, const std::string& topic, const char* node, std::size_t& errors,
+                                const char* what, F take) {
+  return nh.subscribe<sensor_msgs::PointCloud2>(
+      topic, 1, [node, &errors, what, take](const sensor_msgs::PointCloud2ConstPtr& m) {
+        (void)guarded(node, errors, [&] { take(file::from_msg(*m, true, what), m->header.stamp.toSec()); });
+      });
 }
 
 /// Runs a node's `body` (build the core and the node, spin): a bad configuration or database is
