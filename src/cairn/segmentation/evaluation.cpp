@@ -1,5 +1,6 @@
 #include "cairn/segmentation/evaluation.hpp"
 
+#include <algorithm>
 #include <map>
 
 #include "cairn/core/error.hpp"
@@ -16,9 +17,16 @@ std::size_t SegmentationScore::found(double complete) const {
   return n;
 }
 
+std::size_t SegmentationScore::single(double complete, double pure) const {
+  return std::size_t(std::count_if(objects.begin(), objects.end(), [&](const ObjectScore& o) {
+    return o.completeness() >= complete && o.purity() >= pure;
+  }));
+}
+
 nlohmann::json SegmentationScore::to_json(double complete) const {
   nlohmann::json j{{"objects", objects.size()},
                    {"found", found(complete)},
+                   {"single", single()},
                    {"segments", segments},
                    {"terrain_segments", terrain_segments},
                    {"merged_segments", merged}};

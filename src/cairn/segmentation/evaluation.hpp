@@ -26,6 +26,9 @@ struct SegmentationScore {
   std::size_t merged = 0;            // segments that are the best segment of several objects
   /// Objects found as exactly one segment holding >= `complete` of their points, not merged.
   [[nodiscard]] std::size_t found(double complete = 0.95) const;
+  /// Piles (issue #21): objects whose best segment holds >= `complete` of their points and is
+  /// >= `pure` that object (a stone split off with a little of its neighbour still counts).
+  [[nodiscard]] std::size_t single(double complete = 0.9, double pure = 0.9) const;
   [[nodiscard]] nlohmann::json to_json(double complete = 0.95) const;
 };
 

@@ -41,7 +41,10 @@ nlohmann::json segments_json(const PointCloud& cloud, const SegmentationResult& 
                              {"bbox_max", vec(cloud.origin + s.box.max.cast<double>())},
                              {"planar", s.planar},
                              {"plane_inlier_ratio", s.plane_inlier_ratio},
-                             {"stacked_fraction", s.stacked_fraction}});
+                             {"stacked_fraction", s.stacked_fraction},
+                             {"cluster", s.cluster},
+                             {"split", s.split},
+                             {"seam_depth", s.seam_depth}});
   }
   nlohmann::json t = nlohmann::json::object();
   for (const auto& [name, ms] : r.timings.stages) t[name] = ms;

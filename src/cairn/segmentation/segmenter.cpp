@@ -131,33 +131,86 @@ Segment make_segment(std::span<const Vec3f> pts, std::vector<std::uint32_t> idx,
   return s;
 }
 
-}  // namespace
+struct SplitPart {
+  ClusterPart part;
+  std::int32_t cluster = -1;
+  bool split = false;
+};
 
-SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& config) {
+/// Every cluster split into its stones (in parallel), the parts ordered largest first.
+std::vector<SplitPart> split_clusters(std::span<const Vec3f> pts, std::span<const float> height,
+                                      const std::vector<std::vector<std::uint32_t>>& clusters,
+                                      const SplitConfig& config) {
+  std::vector<std::vector<ClusterPart>> split(clusters.size());
+  tbb::parallel_for(std::size_t{0}, clusters.size(),
+                    [&](std::size_t k) { split[k] = split_cluster(pts, height, clusters[k], config); });
+  std::vector<SplitPart> parts;
+  for (std::size_t k = 0; k < split.size(); ++k)
+    for (auto& p : split[k]) parts.push_back({std::move(p), std::int32_t(k), split[k].size() > 1});
+  std::stable_sort(parts.begin(), parts.end(), [](const SplitPart& a, const SplitPart& b) {
+    return a.part.indices.size() > b.part.indices.size();
+  });
+  return parts;
+}
+
+/// Ground heights and the Euclidean clusters above the ground with their bottoms (steps 1-3).
+struct Clusters {
+  GroundResult ground;
+  std::vector<std::vector<std::uint32_t>> clusters;
+};
+Clusters clusters_above_ground(std::span<const Vec3f> pts, const SegmentationConfig& config, std::mt19937_64& rng,
+                               Timings& timings, Stopwatch& sw) {
+  Clusters c{estimate_ground(pts, config.ground, rng), {}};
+  timings.add("ground", sw.lap_ms());
+  std::vector<std::uint32_t> above;
+  for (std::uint32_t i = 0; i < pts.size(); ++i)
+    if (c.ground.height[i] > config.ground.d_plane) above.push_back(i);
+  c.clusters = euclidean_clusters(pts, above, config.clustering);
+  timings.add("clustering", sw.lap_ms());
+  attach_low_band(pts, c.ground.height, config, c.clusters);
+  timings.add("attach_bottoms", sw.lap_ms());
+  return c;
+}
+
+void check_input(const PointCloud& cloud) {
   if (cloud.empty()) throw InputError("segmentation: the cloud is empty");
   cloud.check_finite("segmentation input");
+}
+
+}  // namespace
+
+std::vector<HillContacts> split_evidence(const PointCloud& cloud, const SegmentationConfig& config) {
+  check_input(cloud);
+  std::mt19937_64 rng(config.seed);
+  Timings timings;
+  Stopwatch sw;
+  const Clusters c = clusters_above_ground(cloud.points, config, rng, timings, sw);
+  std::vector<HillContacts> out;
+  for (const auto& cluster : c.clusters) out.push_back(hill_contacts(cloud.points, c.ground.height, cluster, config.split));
+  return out;
+}
+
+SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& config) {
+  check_input(cloud);
   SegmentationResult res;
   std::mt19937_64 rng(config.seed);
   Stopwatch sw;
   const std::span<const Vec3f> pts = cloud.points;
 
-  const GroundResult ground = estimate_ground(pts, config.ground, rng);
+  const Clusters above = clusters_above_ground(pts, config, rng, res.timings, sw);
+  const GroundResult& ground = above.ground;
   res.ground_plane = ground.plane;
-  res.timings.add("ground", sw.lap_ms());
+  std::vector<SplitPart> parts = split_clusters(pts, ground.height, above.clusters, config.split);
+  res.timings.add("split", sw.lap_ms());
 
-  std::vector<std::uint32_t> above;
-  for (std::uint32_t i = 0; i < pts.size(); ++i)
-    if (ground.height[i] > config.ground.d_plane) above.push_back(i);
-  auto clusters = euclidean_clusters(pts, above, config.clustering);
-  res.timings.add("clustering", sw.lap_ms());
-  attach_low_band(pts, ground.height, config, clusters);
-  res.timings.add("attach_bottoms", sw.lap_ms());
-
-  // Shape checks per cluster in parallel; cluster k draws from its own generator (seed, k).
-  std::vector<Segment> checked(clusters.size());
-  tbb::parallel_for(std::size_t{0}, clusters.size(), [&](std::size_t k) {
+  // Shape checks per part in parallel; part k draws from its own generator (seed, k).
+  std::vector<Segment> checked(parts.size());
+  tbb::parallel_for(std::size_t{0}, parts.size(), [&](std::size_t k) {
     std::mt19937_64 gen(config.seed + 0x9E3779B97F4A7C15ull * (k + 1));
-    checked[k] = make_segment(pts, std::move(clusters[k]), config, gen);
+    checked[k] = make_segment(pts, std::move(parts[k].part.indices), config, gen);
+    checked[k].cluster = parts[k].cluster;
+    checked[k].split = parts[k].split;
+    checked[k].seam_depth = parts[k].part.seam_depth;
   });
   std::vector<Segment> objects, planar, terrain;
   for (auto& s : checked) {

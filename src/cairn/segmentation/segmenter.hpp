@@ -1,12 +1,13 @@
 #pragma once
-// Map segmentation (Sec. 4.3): ground removal → Euclidean clustering → planarity check →
-// segments with centroids.
+// Map segmentation (Sec. 4.3): ground removal → Euclidean clustering → splitting touching stones
+// (beyond the paper) → planarity check → segments with centroids.
 #include <cstdint>
 #include <vector>
 
 #include "cairn/core/log.hpp"
 #include "cairn/segmentation/clustering.hpp"
 #include "cairn/segmentation/ground.hpp"
+#include "cairn/segmentation/split.hpp"
 
 namespace cairn {
 
@@ -49,6 +50,7 @@ struct VerticalityConfig {
 struct SegmentationConfig {
   GroundConfig ground;
   ClusterConfig clustering;
+  SplitConfig split;
   PlanarityConfig planarity;
   VerticalityConfig verticality;
   std::uint64_t seed = 42;  // RANSAC generator seed: results are reproducible
@@ -57,6 +59,7 @@ struct SegmentationConfig {
   void visit(V& v) {
     v("ground", ground, "ground removal");
     v("clustering", clustering, "Euclidean clustering of the non-ground points");
+    v("split", split, "splitting clusters of touching stones (piles) along their seams");
     v("planarity", planarity, "planarity check of the clusters");
     v("verticality", verticality, "terrain check of the clusters (steep sides)");
     v("seed", seed, "random seed of the RANSAC steps");
@@ -75,6 +78,9 @@ struct Segment {
   bool planar = false;
   double plane_inlier_ratio = 0.0;
   double stacked_fraction = 1.0;  // share of points in vertically stacked xy columns
+  std::int32_t cluster = -1;      // the Euclidean cluster it came from (clusters largest first)
+  bool split = false;             // one of several parts of that cluster (touching stones)
+  double seam_depth = 0.0;        // split parts: depth of the shallowest seam to another part [m]
 };
 
 struct SegmentationResult {
@@ -88,5 +94,9 @@ struct SegmentationResult {
 
 /// Segments a cloud (positions must be finite; throws InputError otherwise or when empty).
 [[nodiscard]] SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& config);
+
+/// What the splitting of touching stones weighs, per Euclidean cluster (for studies and tests:
+/// the hills and their contacts, split.hpp). Same input contract as segment().
+[[nodiscard]] std::vector<HillContacts> split_evidence(const PointCloud& cloud, const SegmentationConfig& config);
 
 }  // namespace cairn

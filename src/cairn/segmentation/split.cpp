@@ -1,0 +1,359 @@
+#include "cairn/segmentation/split.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+
+#include <Eigen/Eigenvalues>
+
+#include "cairn/core/error.hpp"
+#include "cairn/core/cell_map.hpp"
+
+namespace cairn {
+namespace {
+
+constexpr float kEmpty = -std::numeric_limits<float>::infinity();
+
+void validate(const SplitConfig& c) {
+  if (!(c.voxel_size > 0) || !std::isfinite(c.voxel_size)) throw ConfigError("segmentation.split.voxel_size must be > 0");
+  if (!(c.min_seam_depth >= 0) || !std::isfinite(c.min_seam_depth))
+    throw ConfigError("segmentation.split.min_seam_depth must be >= 0");
+  if (!(c.min_crease_depth >= 0) || !std::isfinite(c.min_crease_depth))
+    throw ConfigError("segmentation.split.min_crease_depth must be >= 0");
+  if (!(c.seam_angle_deg >= 0 && c.seam_angle_deg <= 180))
+    throw ConfigError("segmentation.split.seam_angle_deg must be within [0, 180]");
+  if (!(c.max_rise_deg >= 0 && c.max_rise_deg <= 90))
+    throw ConfigError("segmentation.split.max_rise_deg must be within [0, 90]");
+  if (c.min_part_points < 0) throw ConfigError("segmentation.split.min_part_points must be >= 0");
+  if (!(c.min_part_height >= 0) || !std::isfinite(c.min_part_height))
+    throw ConfigError("segmentation.split.min_part_height must be >= 0");
+  if (!(c.min_part_area >= 0) || !std::isfinite(c.min_part_area))
+    throw ConfigError("segmentation.split.min_part_area must be >= 0");
+}
+
+/// The cluster's surface as a graph of occupied voxels (26-neighbourhood), each voxel carrying
+/// the highest height above the ground of its points.
+struct SurfaceGraph {
+  std::vector<float> top;               // per voxel
+  std::vector<std::uint32_t> count;     // points per voxel
+  std::vector<std::uint32_t> adjacency; // neighbours of voxel v: [begin[v], begin[v+1])
+  std::vector<std::uint32_t> begin;
+  std::vector<std::uint32_t> voxel_of;  // per cluster point
+  std::vector<Eigen::Array3i> coord;    // per voxel
+  std::vector<Eigen::Vector3d> sum;     // per voxel: sum of the points
+  std::vector<Eigen::Matrix3d> outer;   // per voxel: sum of p p^T
+
+  template <class F>
+  void for_neighbours(std::size_t v, F&& f) const {
+    for (auto k = begin[v]; k < begin[v + 1]; ++k) f(adjacency[k]);
+  }
+};
+
+SurfaceGraph surface_graph(std::span<const Vec3f> points, std::span<const float> height,
+                           std::span<const std::uint32_t> indices, float voxel) {
+  SurfaceGraph g;
+  CellMap map(indices.size());
+  std::vector<Eigen::Array3i>& coord = g.coord;
+  const float inv = 1.0f / voxel;
+  g.voxel_of.resize(indices.size());
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const Eigen::Array3i c = (points[indices[k]].array() * inv).floor().cast<int>();
+    const std::uint32_t v = map.insert(CellMap::key(c.x(), c.y(), c.z()), std::uint32_t(coord.size()));
+    if (v == coord.size()) {
+      coord.push_back(c);
+      g.top.push_back(kEmpty);
+      g.count.push_back(0);
+      g.sum.emplace_back(Eigen::Vector3d::Zero());
+      g.outer.emplace_back(Eigen::Matrix3d::Zero());
+    }
+    const Eigen::Vector3d p = points[indices[k]].cast<double>();
+    g.sum[v] += p;
+    g.outer[v] += p * p.transpose();
+    g.voxel_of[k] = v;
+    g.top[v] = std::max(g.top[v], height[indices[k]]);
+    ++g.count[v];
+  }
+  g.begin.assign(1, 0);
+  for (const Eigen::Array3i& c : coord) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (!(dx || dy || dz)) continue;
+          const std::uint32_t n = map.find(CellMap::key(c.x() + dx, c.y() + dy, c.z() + dz));
+          if (n != CellMap::kAbsent) g.adjacency.push_back(n);
+        }
+    g.begin.push_back(std::uint32_t(g.adjacency.size()));
+  }
+  return g;
+}
+
+struct Flooding {
+  std::vector<std::uint32_t> parent;  // union-find over voxels (roots: hills)
+  std::vector<float> peak;            // per root: the hill's top
+  std::vector<Eigen::Vector3d> sum;   // per root: sum of the hill's points
+  std::vector<double> count;          // per root: its number of points
+  /// Seams between hills that stayed apart: (hill a, hill b) -> highest saddle seen.
+  std::map<std::pair<std::uint32_t, std::uint32_t>, float> saddles;
+
+  std::uint32_t find(std::uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  }
+  void attach(std::uint32_t child, std::uint32_t root) {
+    parent[child] = root;
+    sum[root] += sum[child];
+    count[root] += count[child];
+    peak[root] = std::max(peak[root], peak[child]);
+  }
+};
+
+/// Surface normal of voxel v within hill `root`: PCA over v and its neighbours of the same hill
+/// (so the other side of a seam does not blur it), oriented up, or on steep faces outward (in xy)
+/// from the hill's centre.
+Eigen::Vector3d hill_normal(const SurfaceGraph& h, Flooding& f, std::uint32_t v, std::uint32_t root) {
+  constexpr double kSteepNormalZ = 0.5;  // |n_z| below this: a steep face
+  Eigen::Vector3d sum = h.sum[v];
+  Eigen::Matrix3d outer = h.outer[v];
+  double n = h.count[v];
+  h.for_neighbours(v, [&](std::uint32_t m) {
+    if (f.find(m) != root) return;
+    sum += h.sum[m];
+    outer += h.outer[m];
+    n += h.count[m];
+  });
+  const Eigen::Vector3d mean = sum / n;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(outer / n - mean * mean.transpose());
+  const Eigen::Vector3d normal = es.eigenvectors().col(0);
+  const Eigen::Vector3d out = mean - f.sum[root] / f.count[root];
+  const bool flip = std::abs(normal.z()) >= kSteepNormalZ ? normal.z() < 0.0 : normal.head<2>().dot(out.head<2>()) < 0.0;
+  return flip ? -normal : normal;
+}
+
+/// Watershed from the top down with persistence merging (file header): a voxel drains into the
+/// hill of its highest processed neighbour whose surface it continues (steepest ascent; it does
+/// not continue a surface when it rises in front of that neighbour's tangent plane at more than
+/// asin(max_rise) — the far side of a concave crease); where two hills meet, the lower one
+/// survives when its top is at least `persistence` above this voxel (the saddle).
+Flooding flood(const SurfaceGraph& h, double persistence, double max_rise) {
+  const std::size_t n = h.top.size();
+  Flooding f{std::vector<std::uint32_t>(n), h.top, h.sum, std::vector<double>(h.count.begin(), h.count.end()), {}};
+  std::iota(f.parent.begin(), f.parent.end(), 0u);
+  std::vector<std::uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return h.top[a] != h.top[b] ? h.top[a] > h.top[b] : a < b;
+  });
+  std::vector<std::uint8_t> done(n, 0), has_normal(n, 0);
+  std::vector<Eigen::Vector3d> normal(n);
+  std::vector<std::uint32_t> processed, roots;
+  const auto centre = [&](std::uint32_t v) -> Eigen::Vector3d { return h.sum[v] / double(h.count[v]); };
+  // c lies on m's surface unless it rises in front of m's tangent plane (then it belongs to
+  // another body leaning against m's: the far side of a concave crease).
+  const auto on_surface_of = [&](std::uint32_t c, std::uint32_t m) {
+    if (!has_normal[m]) normal[m] = hill_normal(h, f, m, f.find(m)), has_normal[m] = 1;
+    const Eigen::Vector3d d = centre(c) - centre(m);
+    return normal[m].dot(d) <= max_rise * d.norm();
+  };
+  for (const std::uint32_t c : order) {
+    processed.clear();
+    h.for_neighbours(c, [&](std::uint32_t m) {
+      if (done[m]) processed.push_back(m);
+    });
+    done[c] = 1;
+    if (processed.empty()) continue;  // a new hill
+    std::sort(processed.begin(), processed.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return h.top[a] != h.top[b] ? h.top[a] > h.top[b] : a < b;
+    });
+    // c drains into the hill of its highest neighbour whose surface it continues (steepest ascent)
+    const auto it = std::find_if(processed.begin(), processed.end(), [&](std::uint32_t m) { return on_surface_of(c, m); });
+    f.attach(c, f.find(it != processed.end() ? *it : processed.front()));
+    roots.clear();
+    for (const std::uint32_t m : processed) roots.push_back(f.find(m));
+    for (const std::uint32_t r : roots) {
+      const std::uint32_t a = f.find(c), b = f.find(r);
+      if (a == b) continue;
+      if (double(std::min(f.peak[a], f.peak[b]) - h.top[c]) < persistence) {
+        const bool a_higher = f.peak[a] != f.peak[b] ? f.peak[a] > f.peak[b] : a < b;
+        f.attach(a_higher ? b : a, a_higher ? a : b);  // a bump: the lower hill joins the higher
+      }
+    }
+  }
+  return f;
+}
+
+/// The fine hills: every dip of at least min_crease_depth (the smallest that may separate two
+/// stones) keeps its hills apart; merge_hills then decides which are one stone.
+Flooding fine_hills(const SurfaceGraph& h, const SplitConfig& c) {
+  return flood(h, std::min(c.min_crease_depth, c.min_seam_depth), std::sin(c.max_rise_deg * M_PI / 180.0));
+}
+
+/// What two hills share: the highest saddle, and their contact edges (adjacent voxels of the two),
+/// how many of them a sharp concave crease.
+struct Contact {
+  float saddle = kEmpty;
+  std::size_t edges = 0, creased = 0;
+};
+
+/// Per pair of hills (roots, ascending) the contact along all their adjacent voxels. An edge
+/// (a, b) is creased when the normals of the two sides turn towards each other (LCCP's
+/// convexity criterion, Stein et al. 2014: (n_a - n_b)·(x_a - x_b) < 0) by at least the angle.
+std::map<std::pair<std::uint32_t, std::uint32_t>, Contact> contacts(const SurfaceGraph& h, Flooding& f,
+                                                                    double angle_deg) {
+  const double cos_angle = std::cos(angle_deg * M_PI / 180.0);
+  std::map<std::pair<std::uint32_t, std::uint32_t>, Contact> out;
+  std::vector<Eigen::Vector3d> normal(h.top.size());
+  std::vector<std::uint8_t> has_normal(h.top.size(), 0);
+  const auto normal_of = [&](std::uint32_t v) -> const Eigen::Vector3d& {
+    if (!has_normal[v]) normal[v] = hill_normal(h, f, v, f.find(v)), has_normal[v] = 1;
+    return normal[v];
+  };
+  for (std::uint32_t a = 0; a < h.top.size(); ++a)
+    h.for_neighbours(a, [&](std::uint32_t b) {
+      const std::uint32_t ra = f.find(a), rb = f.find(b);
+      if (b < a || ra == rb) return;
+      Contact& c = out[std::minmax(ra, rb)];
+      c.saddle = std::max(c.saddle, std::min(h.top[a], h.top[b]));
+      ++c.edges;
+      const Eigen::Vector3d& na = normal_of(a);
+      const Eigen::Vector3d& nb = normal_of(b);
+      const Eigen::Vector3d d = h.sum[a] / double(h.count[a]) - h.sum[b] / double(h.count[b]);
+      c.creased += na.dot(nb) <= cos_angle && (na - nb).dot(d) < 0.0;
+    });
+  return out;
+}
+
+/// Merges the hills of the fine flooding into stones: two hills are one stone unless the lower
+/// top rises min_seam_depth above their saddle, or min_crease_depth above it while most of their
+/// contact is a sharp concave crease. Shallowest pair first; the remaining pairs are the seams.
+void merge_hills(const SurfaceGraph& h, Flooding& f, const SplitConfig& config) {
+  const auto fine = contacts(h, f, config.seam_angle_deg);
+  while (true) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, Contact> now;  // between current hills
+    for (const auto& [ab, c] : fine) {
+      const std::uint32_t a = f.find(ab.first), b = f.find(ab.second);
+      if (a == b) continue;
+      Contact& m = now[std::minmax(a, b)];
+      m.saddle = std::max(m.saddle, c.saddle);
+      m.edges += c.edges;
+      m.creased += c.creased;
+    }
+    f.saddles.clear();
+    double best = std::numeric_limits<double>::infinity();
+    std::pair<std::uint32_t, std::uint32_t> merge{};
+    for (const auto& [ab, c] : now) {
+      f.saddles[ab] = c.saddle;
+      const double depth = double(std::min(f.peak[ab.first], f.peak[ab.second]) - c.saddle);
+      const bool crease = double(c.creased) >= config.min_crease_share * double(c.edges);
+      const bool seam = depth >= config.min_seam_depth || (crease && depth >= config.min_crease_depth);
+      if (!seam && depth < best) best = depth, merge = ab;
+    }
+    if (!std::isfinite(best)) return;
+    const bool first_higher = f.peak[merge.first] >= f.peak[merge.second];
+    f.attach(first_higher ? merge.second : merge.first, first_higher ? merge.first : merge.second);
+  }
+}
+
+struct Part {
+  std::uint32_t points = 0, cells = 0;
+  float peak = kEmpty;
+};
+
+/// Merges hills that are too small to be a stone into the neighbour they share the highest
+/// saddle with (the largest part when they have none), smallest first.
+void merge_small_parts(const SurfaceGraph& h, Flooding& f, const SplitConfig& c) {
+  const double cell_area = c.voxel_size * c.voxel_size;
+  while (true) {
+    std::map<std::uint32_t, Part> parts;
+    for (std::uint32_t cell = 0; cell < h.top.size(); ++cell) {
+      if (h.top[cell] == kEmpty) continue;
+      Part& p = parts[f.find(cell)];
+      p.points += h.count[cell];
+      p.cells += h.count[cell] > 0;
+      p.peak = f.peak[f.find(cell)];
+    }
+    if (parts.size() < 2) return;
+    const auto small = [&](const Part& p) {
+      return p.points < std::uint32_t(c.min_part_points) || double(p.cells) * cell_area < c.min_part_area ||
+             double(p.peak) < c.min_part_height;
+    };
+    std::uint32_t victim = 0;
+    bool found = false;
+    for (const auto& [root, p] : parts)
+      if (small(p) && (!found || p.points < parts[victim].points)) victim = root, found = true;
+    if (!found) return;
+    std::uint32_t into = 0;
+    float best = kEmpty;
+    for (const auto& [ab, s] : f.saddles) {
+      const std::uint32_t a = f.find(ab.first), b = f.find(ab.second);
+      if (a == b || (a != victim && b != victim)) continue;
+      if (s > best) best = s, into = a == victim ? b : a;
+    }
+    if (best == kEmpty) {  // no seam recorded (cell smaller than the clustering tolerance)
+      std::uint32_t most = 0;
+      for (const auto& [root, p] : parts)
+        if (root != victim && p.points >= most) most = p.points, into = root;
+    }
+    f.attach(victim, into);
+  }
+}
+
+}  // namespace
+
+HillContacts hill_contacts(std::span<const Vec3f> points, std::span<const float> height,
+                           std::span<const std::uint32_t> indices, const SplitConfig& config) {
+  validate(config);
+  HillContacts out;
+  if (indices.empty()) return out;
+  const SurfaceGraph h = surface_graph(points, height, indices, float(config.voxel_size));
+  Flooding f = fine_hills(h, config);
+  std::map<std::uint32_t, std::size_t> hill_of;
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const auto [it, inserted] = hill_of.emplace(f.find(h.voxel_of[k]), out.hills.size());
+    if (inserted) out.hills.emplace_back();
+    out.hills[it->second].push_back(indices[k]);
+  }
+  for (const auto& [ab, c] : contacts(h, f, config.seam_angle_deg)) {
+    const auto a = hill_of.find(ab.first), b = hill_of.find(ab.second);
+    if (a == hill_of.end() || b == hill_of.end()) continue;
+    out.contacts.push_back({a->second, b->second, double(std::min(f.peak[ab.first], f.peak[ab.second]) - c.saddle),
+                            double(c.creased) / double(c.edges), c.edges});
+  }
+  return out;
+}
+
+std::vector<ClusterPart> split_cluster(std::span<const Vec3f> points, std::span<const float> height,
+                                       std::span<const std::uint32_t> indices, const SplitConfig& config) {
+  validate(config);
+  const auto whole = [&] { return std::vector<ClusterPart>{{{indices.begin(), indices.end()}, 0.0}}; };
+  if (!config.enabled || indices.empty()) return whole();
+  const SurfaceGraph h = surface_graph(points, height, indices, float(config.voxel_size));
+  Flooding f = fine_hills(h, config);
+  merge_hills(h, f, config);
+  merge_small_parts(h, f, config);
+
+  std::map<std::uint32_t, std::size_t> part_of;  // hill root -> part
+  std::vector<ClusterPart> parts;
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const std::uint32_t root = f.find(h.voxel_of[k]);
+    const auto [it, inserted] = part_of.emplace(root, parts.size());
+    if (inserted) parts.emplace_back();
+    parts[it->second].indices.push_back(indices[k]);
+  }
+  if (parts.size() == 1) return whole();
+  std::vector<double> depth(parts.size(), std::numeric_limits<double>::infinity());
+  for (const auto& [ab, s] : f.saddles) {
+    const std::uint32_t a = f.find(ab.first), b = f.find(ab.second);
+    if (a == b) continue;
+    const double d = double(std::min(f.peak[a], f.peak[b]) - s);
+    for (const std::uint32_t r : {a, b})
+      if (const auto it = part_of.find(r); it != part_of.end()) depth[it->second] = std::min(depth[it->second], d);
+  }
+  for (std::size_t p = 0; p < parts.size(); ++p) parts[p].seam_depth = std::isfinite(depth[p]) ? depth[p] : 0.0;
+  std::stable_sort(parts.begin(), parts.end(),
+                   [](const ClusterPart& a, const ClusterPart& b) { return a.indices.size() > b.indices.size(); });
+  return parts;
+}
+
+}  // namespace cairn
