@@ -16,6 +16,7 @@
 #include "cairn/core/voxel_grid.hpp"
 #include "cairn/segmentation/segmenter.hpp"
 #include "cairn/sim/procedural_site.hpp"
+#include "cairn/sim/simulation.hpp"
 
 using namespace cairn;
 
@@ -47,6 +48,30 @@ void BM_Cairn_Segment(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(segment(site_map(), {}));
   set_counters(state);
 }
+
+/// A pile of six touching stones (the simulator's pile scenario, seed 1, on a 12 m site), the
+/// same sampling and voxelisation: the splitting of touching stones at work.
+const PointCloud& pile_map() {
+  static const PointCloud map = [] {
+    sim::SiteConfig c = sim::scenario_config("pile", sim::default_real_mesh_dir()).site;
+    c.terrain.size_x = c.terrain.size_y = 12.0;
+    PointCloud cloud = sim::sample_site(sim::generate_site(c, 1), {}, 1).cloud;
+    return voxel_downsample(cloud, {});
+  }();
+  return map;
+}
+
+void segment_split(benchmark::State& state, const PointCloud& map, bool split) {
+  SegmentationConfig cfg;
+  cfg.split.enabled = split;
+  for (auto _ : state) benchmark::DoNotOptimize(segment(map, cfg));
+  state.counters["points"] = double(map.size());
+}
+
+// The splitting's cost: segment with and without it, on the spread site and on a pile.
+void BM_Cairn_SegmentNoSplit(benchmark::State& state) { segment_split(state, site_map(), false); }
+void BM_Cairn_SegmentPile(benchmark::State& state) { segment_split(state, pile_map(), true); }
+void BM_Cairn_SegmentPileNoSplit(benchmark::State& state) { segment_split(state, pile_map(), false); }
 
 void BM_Cairn_SegmentPlaneGround(benchmark::State& state) {
   SegmentationConfig cfg;
@@ -163,6 +188,9 @@ void BM_Pcl_NormalsOMP(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_Cairn_Segment)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Cairn_SegmentNoSplit)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Cairn_SegmentPile)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Cairn_SegmentPileNoSplit)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Cairn_SegmentPlaneGround)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Pcl_Segment)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Cairn_VoxelGrid)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <map>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -74,8 +75,18 @@ PileSite pile_site(std::uint64_t seed, const std::string& scenario = "pile") {
   return p;
 }
 
-/// Seeds of the study tests: `CAIRN_STUDY_SEEDS=first-last` widens them (figures in the note and
-/// docs/segmentation.md come from 101-200).
+/// The site, or none when the generator cannot place the stones (some spread seeds: printed).
+std::optional<PileSite> try_pile_site(std::uint64_t seed, const std::string& scenario) {
+  try {
+    return pile_site(seed, scenario);
+  } catch (const ConfigError& e) {
+    std::printf("%s seed %llu: no site (%s)\n", scenario.c_str(), static_cast<unsigned long long>(seed), e.what());
+    return std::nullopt;
+  }
+}
+
+/// Seeds of the study tests: `CAIRN_STUDY_SEEDS=first-last` replaces them (tuned on 1-6 and
+/// 101-140; the figures of docs/segmentation.md on fresh seeds 201-300).
 std::vector<std::uint64_t> study_seeds(std::uint64_t first, std::uint64_t last) {
   if (const char* env = std::getenv("CAIRN_STUDY_SEEDS")) {
     const std::string s(env);
@@ -83,6 +94,9 @@ std::vector<std::uint64_t> study_seeds(std::uint64_t first, std::uint64_t last) 
     first = std::stoull(s.substr(0, dash));
     last = dash == std::string::npos ? first : std::stoull(s.substr(dash + 1));
   }
+#if defined(__SANITIZE_ADDRESS__)
+  else last = first;  // the path once under the sanitizers; the figures in Release
+#endif
   std::vector<std::uint64_t> seeds;
   for (auto k = first; k <= last; ++k) seeds.push_back(k);
   return seeds;
@@ -173,13 +187,9 @@ TEST(PileSegmentation, MostStonesOfAPileAreSingleSegments) {
 TEST(PileSegmentation, SpreadSitesAreNotSplit) {
   for (const std::string scenario : {"exp1", "exp2"})
     for (const std::uint64_t seed : study_seeds(1, 3)) {
-      PileSite p;
-      try {
-        p = pile_site(seed, scenario);
-      } catch (const ConfigError& e) {  // the generator could not place the stones: no site
-        std::printf("%s seed %llu: no site (%s)\n", scenario.c_str(), static_cast<unsigned long long>(seed), e.what());
-        continue;
-      }
+      const std::optional<PileSite> site = try_pile_site(seed, scenario);
+      if (!site) continue;
+      const PileSite& p = *site;
       const int n = int(p.site.stones.size());
       const SegmentationResult r = segment(p.sampled.cloud, {});
       const SegmentationScore e = score_segmentation(r.labels, p.sampled.truth, n);
@@ -196,6 +206,12 @@ TEST(PileSegmentation, SpreadSitesAreNotSplit) {
                                               << p.site.stones[std::size_t(k)].source << ") is split";
       }
       EXPECT_GE(e.found(), before.found()) << scenario << " seed " << seed;
+      if (e.found() < before.found())
+        for (int k = 0; k < n; ++k)
+          std::printf("  stone %d (%s%s): completeness %.3f -> %.3f, purity %.3f -> %.3f\n", k,
+                      p.site.stones[std::size_t(k)].source.c_str(), p.site.stones[std::size_t(k)].flat ? ", flat" : "",
+                      before.objects[std::size_t(k)].completeness(), e.objects[std::size_t(k)].completeness(),
+                      before.objects[std::size_t(k)].purity(), e.objects[std::size_t(k)].purity());
       EXPECT_LE(e.terrain_segments, before.terrain_segments) << scenario << " seed " << seed;
     }
 }
@@ -214,7 +230,9 @@ TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
   };
   for (const std::string scenario : {"pile", "exp2"})
     for (const std::uint64_t seed : study_seeds(1, 4)) {
-      const PileSite p = pile_site(seed, scenario);
+      const std::optional<PileSite> site = try_pile_site(seed, scenario);
+      if (!site) continue;
+      const PileSite& p = *site;
       for (const HillContacts& cluster : split_evidence(p.sampled.cloud, {}))
         for (const auto& k : cluster.contacts) {
           // hills smaller than a part are merged into a neighbour whatever their contact
