@@ -75,6 +75,13 @@ PileSite pile_site(std::uint64_t seed, const std::string& scenario = "pile") {
   return p;
 }
 
+/// The site's segmentation as the paper's (no splitting of touching stones), scored.
+SegmentationScore score_without_splitting(const PileSite& p) {
+  SegmentationConfig off;
+  off.split.enabled = false;
+  return score_segmentation(segment(p.sampled.cloud, off).labels, p.sampled.truth, int(p.site.stones.size()));
+}
+
 /// The site, or none when the generator cannot place the stones (some spread seeds: printed).
 std::optional<PileSite> try_pile_site(std::uint64_t seed, const std::string& scenario) {
   try {
@@ -167,9 +174,7 @@ TEST(PileSegmentation, MostStonesOfAPileAreSingleSegments) {
     const int n = int(p.site.stones.size());
     const SegmentationResult seg = segment(p.sampled.cloud, {});
     const SegmentationScore e = score_segmentation(seg.labels, p.sampled.truth, n);
-    SegmentationConfig off;
-    off.split.enabled = false;
-    const SegmentationScore before = score_segmentation(segment(p.sampled.cloud, off).labels, p.sampled.truth, n);
+    const SegmentationScore before = score_without_splitting(p);
     stones += std::size_t(n);
     single += e.single();
     single_unsplit += before.single();
@@ -193,9 +198,7 @@ TEST(PileSegmentation, SpreadSitesAreNotSplit) {
       const int n = int(p.site.stones.size());
       const SegmentationResult r = segment(p.sampled.cloud, {});
       const SegmentationScore e = score_segmentation(r.labels, p.sampled.truth, n);
-      SegmentationConfig off;
-      off.split.enabled = false;
-      const SegmentationScore before = score_segmentation(segment(p.sampled.cloud, off).labels, p.sampled.truth, n);
+      const SegmentationScore before = score_without_splitting(p);
       std::size_t split = 0;
       for (const Segment& s : r.segments) split += s.split;
       std::printf("%s seed %llu: %zu/%d found (%zu without splitting), %zu split parts\n", scenario.c_str(),

@@ -153,6 +153,28 @@ std::vector<SplitPart> split_clusters(std::span<const Vec3f> pts, std::span<cons
   return parts;
 }
 
+/// A split part that the shape checks reject (terrain, planar) is no stone of its own: it goes
+/// back to the largest object part of its cluster (a stone's foot or flank the seam cut off),
+/// as it was before the split; without such a sibling it stays rejected.
+void return_rejected_parts(std::span<const Vec3f> pts, std::vector<Segment>& rejected, std::vector<Segment>& objects) {
+  std::erase_if(rejected, [&](Segment& part) {
+    if (!part.split) return false;
+    Segment* sibling = nullptr;
+    for (Segment& o : objects)
+      if (o.cluster == part.cluster && (sibling == nullptr || o.indices.size() > sibling->indices.size())) sibling = &o;
+    if (sibling == nullptr) return false;
+    sibling->indices.insert(sibling->indices.end(), part.indices.begin(), part.indices.end());
+    std::sort(sibling->indices.begin(), sibling->indices.end());
+    sibling->centroid = centroid(pts, sibling->indices);
+    sibling->box.min = sibling->box.min.cwiseMin(part.box.min);
+    sibling->box.max = sibling->box.max.cwiseMax(part.box.max);
+    std::size_t parts = 0;
+    for (const Segment& o : objects) parts += o.cluster == part.cluster;
+    sibling->split = parts > 1;
+    return true;
+  });
+}
+
 /// Ground heights and the Euclidean clusters above the ground with their bottoms (steps 1-3).
 struct Clusters {
   GroundResult ground;
@@ -219,6 +241,8 @@ SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& co
     else
       (s.planar ? planar : objects).push_back(std::move(s));
   }
+  return_rejected_parts(pts, terrain, objects);
+  return_rejected_parts(pts, planar, objects);
   res.timings.add("shape_checks", sw.lap_ms());
 
   res.labels.assign(pts.size(), kLabelNone);
