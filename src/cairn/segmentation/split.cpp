@@ -5,6 +5,9 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <queue>
+#include <set>
+#include <tuple>
 
 #include <Eigen/Eigenvalues>
 
@@ -94,8 +97,7 @@ struct Flooding {
   std::vector<float> peak;            // per root: the hill's top
   std::vector<Eigen::Vector3d> sum;   // per root: sum of the hill's points
   std::vector<double> count;          // per root: its number of points
-  /// Seams between hills that stayed apart: (hill a, hill b) -> highest saddle seen.
-  std::map<std::pair<std::uint32_t, std::uint32_t>, float> saddles;
+  std::vector<double> voxels;         // per root: its number of voxels
 
   std::uint32_t find(std::uint32_t a) {
     while (parent[a] != a) a = parent[a] = parent[parent[a]];
@@ -105,6 +107,7 @@ struct Flooding {
     parent[child] = root;
     sum[root] += sum[child];
     count[root] += count[child];
+    voxels[root] += voxels[child];
     peak[root] = std::max(peak[root], peak[child]);
   }
 };
@@ -138,7 +141,8 @@ Eigen::Vector3d hill_normal(const SurfaceGraph& h, Flooding& f, std::uint32_t v,
 /// survives when its top is at least `persistence` above this voxel (the saddle).
 Flooding flood(const SurfaceGraph& h, double persistence, double max_rise) {
   const std::size_t n = h.top.size();
-  Flooding f{std::vector<std::uint32_t>(n), h.top, h.sum, std::vector<double>(h.count.begin(), h.count.end()), {}};
+  Flooding f{std::vector<std::uint32_t>(n), h.top, h.sum, std::vector<double>(h.count.begin(), h.count.end()),
+             std::vector<double>(n, 1.0)};
   std::iota(f.parent.begin(), f.parent.end(), 0u);
   std::vector<std::uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
@@ -224,78 +228,109 @@ std::map<std::pair<std::uint32_t, std::uint32_t>, Contact> contacts(const Surfac
   return out;
 }
 
-/// Merges the hills of the fine flooding into stones: two hills are one stone unless the lower
-/// top rises min_seam_depth above their saddle, or min_crease_depth above it while most of their
-/// contact is a sharp concave crease. Shallowest pair first; the remaining pairs are the seams.
-void merge_hills(const SurfaceGraph& h, Flooding& f, const SplitConfig& config) {
-  const auto fine = contacts(h, f, config.seam_angle_deg);
-  while (true) {
-    std::map<std::pair<std::uint32_t, std::uint32_t>, Contact> now;  // between current hills
+/// The hills as a region adjacency graph, kept up to date as they merge: per hill its contacts
+/// with the others (a merge moves the absorbed hill's contacts to the survivor).
+class HillGraph {
+ public:
+  HillGraph(Flooding& f, const std::map<std::pair<std::uint32_t, std::uint32_t>, Contact>& fine, std::size_t voxels)
+      : f_(f) {
+    for (std::uint32_t v = 0; v < voxels; ++v) roots_.insert(f.find(v));
     for (const auto& [ab, c] : fine) {
-      const std::uint32_t a = f.find(ab.first), b = f.find(ab.second);
-      if (a == b) continue;
-      Contact& m = now[std::minmax(a, b)];
-      m.saddle = std::max(m.saddle, c.saddle);
-      m.edges += c.edges;
-      m.creased += c.creased;
+      adjacency_[ab.first][ab.second] = c;
+      adjacency_[ab.second][ab.first] = c;
     }
-    f.saddles.clear();
-    double best = std::numeric_limits<double>::infinity();
-    std::pair<std::uint32_t, std::uint32_t> merge{};
-    for (const auto& [ab, c] : now) {
-      f.saddles[ab] = c.saddle;
-      const double depth = double(std::min(f.peak[ab.first], f.peak[ab.second]) - c.saddle);
-      const bool crease = double(c.creased) >= config.min_crease_share * double(c.edges);
-      const bool seam = depth >= config.min_seam_depth || (crease && depth >= config.min_crease_depth);
-      if (!seam && depth < best) best = depth, merge = ab;
+  }
+  [[nodiscard]] const std::set<std::uint32_t>& roots() const { return roots_; }
+  [[nodiscard]] const std::map<std::uint32_t, Contact>& contacts(std::uint32_t root) { return adjacency_[root]; }
+  [[nodiscard]] double depth(std::uint32_t a, std::uint32_t b, const Contact& c) const {
+    return double(std::min(f_.peak[a], f_.peak[b]) - c.saddle);
+  }
+
+  void merge(std::uint32_t from, std::uint32_t into) {
+    f_.attach(from, into);
+    roots_.erase(from);
+    auto absorbed = std::move(adjacency_[from]);
+    adjacency_.erase(from);
+    auto& survivor = adjacency_[into];
+    survivor.erase(from);
+    for (const auto& [x, c] : absorbed) {
+      if (x == into) continue;
+      auto& other = adjacency_[x];
+      other.erase(from);
+      add(survivor[x], c);
+      add(other[into], c);
     }
-    if (!std::isfinite(best)) return;
-    const bool first_higher = f.peak[merge.first] >= f.peak[merge.second];
-    f.attach(first_higher ? merge.second : merge.first, first_higher ? merge.first : merge.second);
+  }
+
+ private:
+  static void add(Contact& to, const Contact& c) {
+    to.saddle = std::max(to.saddle, c.saddle);
+    to.edges += c.edges;
+    to.creased += c.creased;
+  }
+  Flooding& f_;
+  std::set<std::uint32_t> roots_;
+  std::map<std::uint32_t, std::map<std::uint32_t, Contact>> adjacency_;
+};
+
+/// Merges the hills of the fine flooding into stones: two hills are one stone unless the lower
+/// top rises min_seam_depth above their saddle, or min_crease_depth above it while at least
+/// min_crease_share of their contact is a sharp concave crease. Shallowest pair first (a queue
+/// whose stale entries are re-checked when they come up); the remaining pairs are the seams.
+void merge_hills(Flooding& f, HillGraph& g, const SplitConfig& config) {
+  const auto same_stone = [&](std::uint32_t a, std::uint32_t b, const Contact& c) {
+    const double depth = g.depth(a, b, c);
+    const bool crease = double(c.creased) >= config.min_crease_share * double(c.edges);
+    return !(depth >= config.min_seam_depth || (crease && depth >= config.min_crease_depth));
+  };
+  using Entry = std::tuple<double, std::uint32_t, std::uint32_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> queue;
+  const auto push_contacts = [&](std::uint32_t a) {
+    for (const auto& [b, c] : g.contacts(a))
+      if (same_stone(a, b, c)) queue.emplace(g.depth(a, b, c), std::min(a, b), std::max(a, b));
+  };
+  for (const std::uint32_t r : g.roots()) push_contacts(r);
+  while (!queue.empty()) {
+    const auto [queued, a, b] = queue.top();
+    queue.pop();
+    if (f.find(a) != a || f.find(b) != b) continue;  // one of them merged since
+    const auto& contacts = g.contacts(a);
+    const auto it = contacts.find(b);
+    if (it == contacts.end() || !same_stone(a, b, it->second)) continue;
+    if (const double now = g.depth(a, b, it->second); now > queued) {  // grew since: wait its turn
+      queue.emplace(now, a, b);
+      continue;
+    }
+    const bool a_higher = f.peak[a] != f.peak[b] ? f.peak[a] > f.peak[b] : a < b;
+    g.merge(a_higher ? b : a, a_higher ? a : b);
+    push_contacts(a_higher ? a : b);
   }
 }
 
-struct Part {
-  std::uint32_t points = 0, cells = 0;
-  float peak = kEmpty;
-};
-
-/// Merges hills that are too small to be a stone into the neighbour they share the highest
-/// saddle with (the largest part when they have none), smallest first.
-void merge_small_parts(const SurfaceGraph& h, Flooding& f, const SplitConfig& c) {
-  const double cell_area = c.voxel_size * c.voxel_size;
-  while (true) {
-    std::map<std::uint32_t, Part> parts;
-    for (std::uint32_t cell = 0; cell < h.top.size(); ++cell) {
-      if (h.top[cell] == kEmpty) continue;
-      Part& p = parts[f.find(cell)];
-      p.points += h.count[cell];
-      p.cells += h.count[cell] > 0;
-      p.peak = f.peak[f.find(cell)];
-    }
-    if (parts.size() < 2) return;
-    const auto small = [&](const Part& p) {
-      return p.points < std::uint32_t(c.min_part_points) || double(p.cells) * cell_area < c.min_part_area ||
-             double(p.peak) < c.min_part_height;
-    };
-    std::uint32_t victim = 0;
-    bool found = false;
-    for (const auto& [root, p] : parts)
-      if (small(p) && (!found || p.points < parts[victim].points)) victim = root, found = true;
-    if (!found) return;
-    std::uint32_t into = 0;
+/// Merges hills that are too small, or too low, to be a stone into the neighbour they share the
+/// highest saddle with (the largest hill when they touch none), smallest first.
+void merge_small_parts(Flooding& f, HillGraph& g, const SplitConfig& c) {
+  const double voxel_area = c.voxel_size * c.voxel_size;
+  const auto small = [&](std::uint32_t r) {
+    return f.count[r] < double(c.min_part_points) || f.voxels[r] * voxel_area < c.min_part_area ||
+           double(f.peak[r]) < c.min_part_height;
+  };
+  std::set<std::pair<double, std::uint32_t>> queue;  // (points, hill)
+  for (const std::uint32_t r : g.roots())
+    if (small(r)) queue.emplace(f.count[r], r);
+  while (!queue.empty() && g.roots().size() > 1) {
+    const std::uint32_t victim = queue.begin()->second;
+    queue.erase(queue.begin());
+    if (f.find(victim) != victim || !small(victim)) continue;
+    std::uint32_t into = victim;
     float best = kEmpty;
-    for (const auto& [ab, s] : f.saddles) {
-      const std::uint32_t a = f.find(ab.first), b = f.find(ab.second);
-      if (a == b || (a != victim && b != victim)) continue;
-      if (s > best) best = s, into = a == victim ? b : a;
-    }
-    if (best == kEmpty) {  // no seam recorded (cell smaller than the clustering tolerance)
-      std::uint32_t most = 0;
-      for (const auto& [root, p] : parts)
-        if (root != victim && p.points >= most) most = p.points, into = root;
-    }
-    f.attach(victim, into);
+    for (const auto& [x, contact] : g.contacts(victim))
+      if (into == victim || contact.saddle > best) best = contact.saddle, into = x;
+    if (into == victim)  // touches no other hill
+      for (const std::uint32_t r : g.roots())
+        if (r != victim && (into == victim || f.count[r] > f.count[into])) into = r;
+    g.merge(victim, into);
+    if (small(into)) queue.emplace(f.count[into], into);
   }
 }
 
@@ -330,8 +365,9 @@ std::vector<ClusterPart> split_cluster(std::span<const Vec3f> points, std::span<
   if (!config.enabled || indices.empty()) return whole();
   const SurfaceGraph h = surface_graph(points, height, indices, float(config.voxel_size));
   Flooding f = fine_hills(h, config);
-  merge_hills(h, f, config);
-  merge_small_parts(h, f, config);
+  HillGraph g(f, contacts(h, f, config.seam_angle_deg), h.top.size());
+  merge_hills(f, g, config);
+  merge_small_parts(f, g, config);
 
   std::map<std::uint32_t, std::size_t> part_of;  // hill root -> part
   std::vector<ClusterPart> parts;
@@ -342,15 +378,11 @@ std::vector<ClusterPart> split_cluster(std::span<const Vec3f> points, std::span<
     parts[it->second].indices.push_back(indices[k]);
   }
   if (parts.size() == 1) return whole();
-  std::vector<double> depth(parts.size(), std::numeric_limits<double>::infinity());
-  for (const auto& [ab, s] : f.saddles) {
-    const std::uint32_t a = f.find(ab.first), b = f.find(ab.second);
-    if (a == b) continue;
-    const double d = double(std::min(f.peak[a], f.peak[b]) - s);
-    for (const std::uint32_t r : {a, b})
-      if (const auto it = part_of.find(r); it != part_of.end()) depth[it->second] = std::min(depth[it->second], d);
+  for (auto& [root, p] : part_of) {
+    double shallowest = std::numeric_limits<double>::infinity();
+    for (const auto& [x, c] : g.contacts(root)) shallowest = std::min(shallowest, g.depth(root, x, c));
+    parts[p].seam_depth = std::isfinite(shallowest) ? shallowest : 0.0;
   }
-  for (std::size_t p = 0; p < parts.size(); ++p) parts[p].seam_depth = std::isfinite(depth[p]) ? depth[p] : 0.0;
   std::stable_sort(parts.begin(), parts.end(),
                    [](const ClusterPart& a, const ClusterPart& b) { return a.indices.size() > b.indices.size(); });
   return parts;
