@@ -255,6 +255,9 @@ TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
     same_share = std::max(same_share, k.crease_share);
     same_depth = std::max(same_depth, k.depth);
     false_seams += is_seam(k);
+    if (is_seam(k))
+      std::printf("one stone's hills taken for two: depth %.3f m, crease share %.2f, %zu contact edges\n", k.depth,
+                  k.crease_share, k.edges);
   }
   std::vector<double> seam_share;
   for (const auto& k : seams) {
