@@ -44,7 +44,6 @@ struct SurfaceGraph {
   std::vector<std::uint32_t> adjacency; // neighbours of voxel v: [begin[v], begin[v+1])
   std::vector<std::uint32_t> begin;
   std::vector<std::uint32_t> voxel_of;  // per cluster point
-  std::vector<Eigen::Array3i> coord;    // per voxel
   std::vector<Eigen::Vector3d> sum;     // per voxel: sum of the points
   std::vector<Eigen::Matrix3d> outer;   // per voxel: sum of p p^T
 
@@ -58,7 +57,7 @@ SurfaceGraph surface_graph(std::span<const Vec3f> points, std::span<const float>
                            std::span<const std::uint32_t> indices, float voxel) {
   SurfaceGraph g;
   CellMap map(indices.size());
-  std::vector<Eigen::Array3i>& coord = g.coord;
+  std::vector<Eigen::Array3i> coord;  // per voxel, for the adjacency
   const float inv = 1.0f / voxel;
   g.voxel_of.resize(indices.size());
   for (std::size_t k = 0; k < indices.size(); ++k) {
@@ -200,6 +199,27 @@ struct Contact {
   std::size_t edges = 0, creased = 0;
 };
 
+/// How far the lower of two hills' tops rises above their saddle [m].
+double saddle_depth(const Flooding& f, std::uint32_t a, std::uint32_t b, const Contact& c) {
+  return double(std::min(f.peak[a], f.peak[b]) - c.saddle);
+}
+
+/// The cluster's points grouped by the hill (root) their voxel belongs to, hills in order of
+/// their first point.
+struct HillPoints {
+  std::map<std::uint32_t, std::size_t> index;      // hill root -> group
+  std::vector<std::vector<std::uint32_t>> points;  // indices into the cloud, ascending
+};
+HillPoints group_by_hill(const SurfaceGraph& h, Flooding& f, std::span<const std::uint32_t> indices) {
+  HillPoints g;
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const auto [it, inserted] = g.index.emplace(f.find(h.voxel_of[k]), g.points.size());
+    if (inserted) g.points.emplace_back();
+    g.points[it->second].push_back(indices[k]);
+  }
+  return g;
+}
+
 /// Per pair of hills (roots, ascending) the contact along all their adjacent voxels. An edge
 /// (a, b) is creased when the normals of the two sides turn towards each other (LCCP's
 /// convexity criterion, Stein et al. 2014: (n_a - n_b)·(x_a - x_b) < 0) by at least the angle.
@@ -243,7 +263,7 @@ class HillGraph {
   [[nodiscard]] const std::set<std::uint32_t>& roots() const { return roots_; }
   [[nodiscard]] const std::map<std::uint32_t, Contact>& contacts(std::uint32_t root) { return adjacency_[root]; }
   [[nodiscard]] double depth(std::uint32_t a, std::uint32_t b, const Contact& c) const {
-    return double(std::min(f_.peak[a], f_.peak[b]) - c.saddle);
+    return saddle_depth(f_, a, b, c);
   }
 
   void merge(std::uint32_t from, std::uint32_t into) {
@@ -343,18 +363,14 @@ HillContacts hill_contacts(std::span<const Vec3f> points, std::span<const float>
   if (indices.empty()) return out;
   const SurfaceGraph h = surface_graph(points, height, indices, float(config.voxel_size));
   Flooding f = fine_hills(h, config);
-  std::map<std::uint32_t, std::size_t> hill_of;
-  for (std::size_t k = 0; k < indices.size(); ++k) {
-    const auto [it, inserted] = hill_of.emplace(f.find(h.voxel_of[k]), out.hills.size());
-    if (inserted) out.hills.emplace_back();
-    out.hills[it->second].push_back(indices[k]);
-  }
+  HillPoints hills = group_by_hill(h, f, indices);
   for (const auto& [ab, c] : contacts(h, f, config.seam_angle_deg)) {
-    const auto a = hill_of.find(ab.first), b = hill_of.find(ab.second);
-    if (a == hill_of.end() || b == hill_of.end()) continue;
-    out.contacts.push_back({a->second, b->second, double(std::min(f.peak[ab.first], f.peak[ab.second]) - c.saddle),
+    const auto a = hills.index.find(ab.first), b = hills.index.find(ab.second);
+    if (a == hills.index.end() || b == hills.index.end()) continue;
+    out.contacts.push_back({a->second, b->second, saddle_depth(f, ab.first, ab.second, c),
                             double(c.creased) / double(c.edges), c.edges});
   }
+  out.hills = std::move(hills.points);
   return out;
 }
 
@@ -369,16 +385,11 @@ std::vector<ClusterPart> split_cluster(std::span<const Vec3f> points, std::span<
   merge_hills(f, g, config);
   merge_small_parts(f, g, config);
 
-  std::map<std::uint32_t, std::size_t> part_of;  // hill root -> part
-  std::vector<ClusterPart> parts;
-  for (std::size_t k = 0; k < indices.size(); ++k) {
-    const std::uint32_t root = f.find(h.voxel_of[k]);
-    const auto [it, inserted] = part_of.emplace(root, parts.size());
-    if (inserted) parts.emplace_back();
-    parts[it->second].indices.push_back(indices[k]);
-  }
-  if (parts.size() == 1) return whole();
-  for (auto& [root, p] : part_of) {
+  HillPoints hills = group_by_hill(h, f, indices);
+  if (hills.points.size() == 1) return whole();
+  std::vector<ClusterPart> parts(hills.points.size());
+  for (std::size_t p = 0; p < parts.size(); ++p) parts[p].indices = std::move(hills.points[p]);
+  for (const auto& [root, p] : hills.index) {
     double shallowest = std::numeric_limits<double>::infinity();
     for (const auto& [x, c] : g.contacts(root)) shallowest = std::min(shallowest, g.depth(root, x, c));
     parts[p].seam_depth = std::isfinite(shallowest) ? shallowest : 0.0;
