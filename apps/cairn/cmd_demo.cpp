@@ -82,7 +82,7 @@ void add_demo_command(CLI::App& app, std::function<int()>& run) {
               "the drone cloud, segment, fill the object database, then plan, grasp, carry, place, rescan and "
               "re-align every stone (exp1: once; exp2: four rounds)");
   cmd->add_option("--out", args->out, "output directory (summary.json, objects.db, report.html, fig_*)")->capture_default_str();
-  cmd->add_option("--scenario", args->scenario, "experiment: exp1 or exp2")->capture_default_str();
+  cmd->add_option("--scenario", args->scenario, "experiment: exp1, exp2 or pile (clearing a pile of touching stones, issue #21)")->capture_default_str();
   cmd->add_option("--seed", args->seed, "site seed (same seed, same site and sensor data)")->capture_default_str();
   cmd->add_flag("--overwrite", args->overwrite, "replace the object database of an earlier run in --out");
   args->common.add_to(*cmd);

@@ -12,7 +12,9 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <set>
 
+#include "cairn/core/error.hpp"
 #include "cairn/objects/object_db.hpp"
 #include "cairn/report/report.hpp"
 #include "support/browser.hpp"
@@ -143,6 +145,63 @@ TEST(Experiment, Exp1RegistersPlansGraspsAndDetectsEveryFailure) {
   // (docs/experiments.md).
   std::printf("%d failed attempts, %d detected, %d false alarms\n", r.failures, r.failures_detected, r.false_alarms);
 #endif
+}
+
+// Clearing a pile (issue #21 item 4): every stone of a small pile picked in the machine's order
+// (none another object rests on), the map re-segmented after every move, the pile's shifts
+// counted from the truth. How many stones reach the row is measured over seeds in
+// docs/experiments.md (missed: the grasps of issue #17), not asserted here.
+TEST(Experiment, PileIsClearedOneStoneAtATimeReSegmentingAfterEveryMove) {
+  ExperimentConfig c;
+  c.experiment = c.tracking.scenario = "pile";
+  c.tracking.seed = 1;
+  c.tracking.simulation = sim::scenario_config("pile", sim::default_real_mesh_dir());
+  c.tracking.simulation.site.stones.count = 3;
+  c.tracking.database = fresh_db("cairn_test_pile");
+  c.max_attempts = 1;
+#if defined(__SANITIZE_ADDRESS__)
+  c.tracking.simulation.site.stones.count = 2;  // the same path, short
+  c.tracking.initial_scan = 6.0;
+  c.tracking.rescan = 4.0;
+  c.registration_timeout = 10.0;
+#endif
+  const ExperimentResult r = run_experiment(c);
+  std::filesystem::remove(c.tracking.database);
+  const int stones = c.tracking.simulation.site.stones.count;
+  EXPECT_EQ(r.stones, stones);
+  EXPECT_GE(r.stones_tracked, stones - 1);  // at most one pair still merged at the end
+  ASSERT_EQ(r.rounds.size(), 1u);
+  // Every tracked stone picked once (one attempt each), the map re-segmented before each next
+  // pick and once more to see that nothing is left.
+  EXPECT_EQ(r.moves, r.stones_tracked);
+  EXPECT_EQ(int(r.grasps.size()), r.moves);
+  EXPECT_EQ(r.resegmentations, r.moves);
+  std::set<int> picked;
+  int shifts = 0;
+  for (const GraspRecord& g : r.grasps) {
+    EXPECT_TRUE(picked.insert(g.stone).second) << "stone " << g.stone << " picked twice";
+    EXPECT_GE(g.others_moved_m, 0.0);
+    EXPECT_EQ(g.others_loaded, 0) << "a stone other objects rest on went while a free one was left";
+    shifts += g.others_moved_m > c.pile_shift;
+    std::printf("stone %d: %s, target error %.2f m, the pile moved %.3f m\n", g.stone,
+                g.success ? "held" : "failed", g.target_error_m, g.others_moved_m);
+  }
+  EXPECT_EQ(r.pile_shifts, shifts);
+  const nlohmann::json j = to_json(r);
+  EXPECT_EQ(j.at("summary").at("pile_shifts").get<int>(), r.pile_shifts);
+  EXPECT_EQ(j.at("summary").at("resegmentations").get<int>(), r.resegmentations);
+  EXPECT_TRUE(j.at("grasps").at(0).contains("others_moved_m"));
+  std::printf("pile of %d: %d moves, %d placed, %d pile shifts\n", stones, r.moves, r.placed, r.pile_shifts);
+}
+
+TEST(Experiment, APileHasOneRound) {
+  ExperimentConfig c;
+  c.experiment = "pile";
+  c.rounds = 2;
+  EXPECT_THROW((void)run_experiment(c), ConfigError);
+  c.rounds = 1;
+  c.pile_shift = 0.0;
+  EXPECT_THROW((void)run_experiment(c), ConfigError);
 }
 
 }  // namespace

@@ -6,12 +6,14 @@
 #include <cmath>
 #include <numbers>
 #include <optional>
+#include <set>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/transform.hpp"
 #include "cairn/eval/tracker.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/objects/pipeline.hpp"
+#include "cairn/objects/support.hpp"
 #include "cairn/registration/scale_recovery.hpp"
 #include "cairn/sim/drone.hpp"
 #include "cairn/mapping/map_edit.hpp"
@@ -41,8 +43,10 @@ Eigen::AlignedBox2d xy_bounds(const PointCloud& c) {
 }
 
 void validate(const ExperimentConfig& c) {
-  if (c.experiment != "exp1" && c.experiment != "exp2")
-    throw ConfigError("experiment must be 'exp1' or 'exp2', not '" + c.experiment + "'");
+  if (c.experiment != "exp1" && c.experiment != "exp2" && c.experiment != "pile")
+    throw ConfigError("experiment must be 'exp1', 'exp2' or 'pile', not '" + c.experiment + "'");
+  if (c.experiment == "pile" && c.rounds > 1) throw ConfigError("experiment pile: one round (the pile is cleared once)");
+  if (!(c.pile_shift > 0)) throw ConfigError("experiment: pile_shift must be > 0");
   if (c.rounds < 0 || c.max_attempts < 1) throw ConfigError("experiment: rounds >= 0 and max_attempts >= 1 required");
   if (!(c.registration_period > 0) || !(c.registration_timeout >= c.registration_period))
     throw ConfigError("experiment: registration_period > 0 and registration_timeout >= registration_period required");
@@ -57,7 +61,27 @@ void validate(const ExperimentConfig& c) {
   c.grasp.validate();
 }
 
-int rounds_of(const ExperimentConfig& c) { return c.rounds > 0 ? c.rounds : c.experiment == "exp1" ? 1 : 4; }
+int rounds_of(const ExperimentConfig& c) { return c.rounds > 0 ? c.rounds : c.experiment == "exp2" ? 4 : 1; }
+
+/// Every stone's mesh vertices (world): the truth's surfaces, to measure how far stones moved.
+std::vector<std::vector<Vec3d>> surfaces(const sim::Site& site) {
+  std::vector<std::vector<Vec3d>> v;
+  for (const sim::Stone& s : site.stones) {
+    v.emplace_back();
+    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) v.back().push_back(s.mesh.vertices.world(i));
+  }
+  return v;
+}
+
+/// The largest surface displacement since `before` of the stones not `skip`ped.
+double largest_motion(const sim::Site& site, const std::vector<std::vector<Vec3d>>& before, const std::vector<bool>& skip) {
+  double d = 0.0;
+  const std::vector<std::vector<Vec3d>> now = surfaces(site);
+  for (std::size_t s = 0; s < now.size(); ++s)
+    for (std::size_t i = 0; !skip[s] && i < now[s].size() && i < before[s].size(); ++i)
+      d = std::max(d, (now[s][i] - before[s][i]).norm());
+  return d;
+}
 
 /// Simulated time the machine's estimate and sweeps must cover: the registration, then every
 /// attempt's trial (at most ~carry_time) and rescan.
@@ -127,6 +151,7 @@ class Experiment {
   void register_while_scanning();
   void populate();
   void run_round(int round);
+  void clear_pile();
   ExperimentResult out;
 
  private:
@@ -135,6 +160,9 @@ class Experiment {
   [[nodiscard]] double ground_height(const PointCloud& map, const Vec2d& xy, double fallback) const;
   [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
   bool attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target);
+  void move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& used);
+  void capture_after(int round, int move, int moves);
+  [[nodiscard]] Tracker::Tracked* next_off_pile(const std::set<std::int64_t>& picked, int& loaded);
   void score_round(int round, const RoundRecord& rr);
   void capture(const std::string& label, int round, int move);
   void capture(const std::string& label, int round, int move, const PointCloud& map, const Isometry3d& E);
@@ -351,6 +379,7 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   plan.T_world_gripper = m.E_state(t0) * best.T_map_gripper;  // commanded in the map frame
   plan.T_world_place = m.E_state(t0 + c_.tracking.carry_time) * T_MG_place;
   plan.target_stone = tr.stone;  // the physics' truth: grasping another stone is a failure
+  const std::vector<std::vector<Vec3d>> surfaces_before = surfaces(m.world().site);
   sim::PhysicsConfig physics = m.config().physics;
   physics.abort_on_failure = false;  // the machine carries on until it notices itself
   physics.place_support_fraction = c_.place_support;
@@ -362,6 +391,10 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   tracker_.world_moved(r.stone_poses);
   if (!r.settled) tracker_.world_moved(sim::settle_site(site, m.config().physics).stone_poses);
   m.world().scene = sim::make_world_scene(site, m.config().terrain_mesh_spacing);
+  std::vector<bool> skip = moved_;
+  skip[std::size_t(tr.stone)] = true;
+  g.others_moved_m = largest_motion(site, surfaces_before, skip);
+  out.pile_shifts += g.others_moved_m > c_.pile_shift;
   g.sim_time = r.sim_time;
   g.wall_s = sw.lap_ms() / 1000.0;
   physics_ms_ += 1000.0 * g.wall_s;
@@ -398,6 +431,31 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   return at_target;
 }
 
+/// Moves one stone to the round's row: a free target, then at most max_attempts grasps.
+void Experiment::move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& used) {
+  const std::string name = "round " + std::to_string(round) + ": object " + std::to_string(tr.object);
+  if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
+    out.notes.push_back(name + " is lost, not moved");
+    return;
+  }
+  const std::optional<Vec2d> target = free_target(round, *tracker_.db().object(tr.object), used);
+  if (!target) {
+    out.notes.push_back(name + ": no free place in the row");
+    return;
+  }
+  targets_[tr.stone] = *target;
+  ++moves_;
+  ++out.moves;
+  for (int a = 1; a <= c_.max_attempts; ++a) {
+    if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
+      out.notes.push_back(name + " was lost after attempt " + std::to_string(a - 1));
+      break;
+    }
+    if (attempt(round, a, tr, *target)) break;
+  }
+  moved_[std::size_t(tr.stone)] = true;
+}
+
 void Experiment::run_round(int round) {
   std::vector<Tracker::Tracked*> order;  // largest first (Sec. 5.1): the database's point counts
   for (Tracker::Tracked& t : tracker_.tracked()) order.push_back(&t);
@@ -409,37 +467,70 @@ void Experiment::run_round(int round) {
   std::vector<bool> used(row(round).size(), false);
   targets_.clear();
   for (std::size_t i = 0; i < idx.size(); ++i) {
-    Tracker::Tracked& tr = *order[idx[i]];
     progress("round " + std::to_string(round) + ": moving stones", int(i), int(idx.size()));
-    const std::string name = "round " + std::to_string(round) + ": object " + std::to_string(tr.object);
-    if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
-      out.notes.push_back(name + " is lost, not moved");
-      continue;
-    }
-    const std::optional<Vec2d> target = free_target(round, *tracker_.db().object(tr.object), used);
-    if (!target) {
-      out.notes.push_back(name + ": no free place in the row");
-      continue;
-    }
-    targets_[tr.stone] = *target;
-    ++moves_;
-    ++out.moves;
-    for (int a = 1; a <= c_.max_attempts; ++a) {
-      if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
-        out.notes.push_back(name + " was lost after attempt " + std::to_string(a - 1));
-        break;
-      }
-      if (attempt(round, a, tr, *target)) break;
-    }
-    moved_[std::size_t(tr.stone)] = true;
-    const int move = int(i) + 1;
-    const auto& after = c_.scene_after_moves;
-    if (round == 1 && move < int(idx.size()) && std::find(after.begin(), after.end(), move) != after.end())
-      capture("round 1, after move " + std::to_string(move), round, move);
+    move_stone(round, *order[idx[i]], used);
+    capture_after(round, int(i) + 1, int(idx.size()));
   }
   RoundRecord rr{.round = round};
   tracker_.resegment(rr);
   score_round(round, rr);
+}
+
+/// The report's scene after the round-1 moves listed in scene_after_moves (not after the last).
+void Experiment::capture_after(int round, int move, int moves) {
+  const auto& after = c_.scene_after_moves;
+  if (round == 1 && move < moves && std::find(after.begin(), after.end(), move) != after.end())
+    capture("round 1, after move " + std::to_string(move), round, move);
+}
+
+/// The next stone off the pile (objects/support.hpp, the machine's view): among the tracked
+/// objects not yet picked and not lost, one no object rests on; nullptr when none is left.
+Tracker::Tracked* Experiment::next_off_pile(const std::set<std::int64_t>& picked, int& loaded) {
+  const std::vector<ObjectRecord> objects = tracker_.db().objects();  // not lost
+  std::vector<std::size_t> candidates;
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    const bool tracked = std::any_of(tracker_.tracked().begin(), tracker_.tracked().end(),
+                                     [&](const Tracker::Tracked& t) { return t.object == objects[i].id; });
+    if (tracked && !picked.contains(objects[i].id)) candidates.push_back(i);
+  }
+  if (candidates.empty()) return nullptr;
+  const SupportConfig& sc = c_.tracking.objects.support;
+  const std::size_t k = next_to_pick(objects, candidates, sc);
+  loaded = loads(objects.size(), contacts(objects, sc))[k];
+  for (Tracker::Tracked& t : tracker_.tracked())
+    if (t.object == objects[k].id) return &t;
+  return nullptr;
+}
+
+/// Clears the pile into the row (issue #21): re-segments after every move, so a stone that came
+/// out merged with a neighbour becomes an object once the neighbour is gone, and picks next a
+/// stone no other object rests on.
+void Experiment::clear_pile() {
+  std::vector<bool> used(row(1).size(), false);
+  targets_.clear();
+  std::set<std::int64_t> picked;
+  const int stones = out.stones;
+  for (int move = 1;; ++move) {
+    if (move > 1) {
+      RoundRecord rr{.round = 1};
+      tracker_.resegment(rr);
+      tracker_.adopt_new_objects();
+      ++out.resegmentations;
+    }
+    int loaded = 0;
+    Tracker::Tracked* tr = next_off_pile(picked, loaded);
+    if (!tr) break;
+    progress("clearing the pile", move - 1, stones);
+    picked.insert(tr->object);
+    const std::size_t first = out.grasps.size();
+    move_stone(1, *tr, used);
+    for (std::size_t g = first; g < out.grasps.size(); ++g) out.grasps[g].others_loaded = loaded;
+    capture_after(1, move, stones);
+  }
+  RoundRecord rr{.round = 1};
+  tracker_.resegment(rr);
+  score_round(1, rr);
+  out.stones_tracked = int(tracker_.tracked().size());  // with the stones adopted on the way
 }
 
 void Experiment::score_round(int round, const RoundRecord& rr) {
@@ -525,7 +616,9 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const Experiment
   Experiment e(config, progress);
   e.register_while_scanning();
   e.populate();
-  for (int r = 1; r <= rounds_of(config); ++r) e.run_round(r);
+  if (config.experiment == "pile") e.clear_pile();
+  else
+    for (int r = 1; r <= rounds_of(config); ++r) e.run_round(r);
   e.finish(sw.lap_ms());
   return std::move(e.out);
 }
@@ -559,7 +652,8 @@ nlohmann::json to_json(const ExperimentResult& r) {
                       {"costs", {{"align_rad", x.costs.align}, {"enclose_m", x.costs.enclose}, {"dist_m", x.costs.dist}}},
                       {"T_map_gripper", pose_to_json(x.T_map_gripper)}, {"target", {x.target.x(), x.target.y()}},
                       {"target_error_m", or_null(x.target_error_m)}, {"sim_time_s", x.sim_time}, {"wall_s", x.wall_s},
-                      {"place_error_m", or_null(x.place_error_m)},
+                      {"place_error_m", or_null(x.place_error_m)}, {"others_moved_m", x.others_moved_m},
+                      {"others_loaded", x.others_loaded},
                       {"database", {{"predicted_error_m", x.move.predicted_error_m},
                                     {"predicted_error_deg", x.move.predicted_error_deg},
                                     {"error_m", x.move.error_m}, {"error_deg", x.move.error_deg},
@@ -591,7 +685,8 @@ nlohmann::json to_json(const ExperimentResult& r) {
           {"rounds", rounds},
           {"summary", {{"moves", r.moves}, {"placed", r.placed}, {"first_attempt_success", r.first_attempt_success},
                        {"within_attempts", r.within_attempts}, {"failures", r.failures},
-                       {"failures_detected", r.failures_detected}, {"false_alarms", r.false_alarms}}},
+                       {"failures_detected", r.failures_detected}, {"false_alarms", r.false_alarms},
+                       {"pile_shifts", r.pile_shifts}, {"resegmentations", r.resegmentations}}},
           {"notes", r.notes},
           {"timings_ms", timings_json(r.timings)}};
 }

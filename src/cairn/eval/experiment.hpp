@@ -9,6 +9,11 @@
 // re-aligned (4.5). Experiment 1 moves every stone once, experiment 2 four times, without a map or
 // database reset.
 //
+// Beyond the paper (issue #21), `pile` clears a pile of touching stones into the row: after each
+// move the map is re-segmented (a stone that came out merged with its neighbour may now stand
+// alone and becomes an object), and the next stone is one no other object rests on
+// (objects/support.hpp: the machine's view), the largest of those.
+//
 // Beyond the paper (whose operator re-adjusted 4 of 35 grasps by hand): a failed grasp is
 // detected from what the machine measures — the jaw encoder closing further while lifted, the
 // arm's load after lifting and before lowering, and the rescanned object not at its target —
@@ -51,7 +56,7 @@ struct SlipDetectionConfig {
 };
 
 struct ExperimentConfig {
-  std::string experiment = "exp1";  // exp1 (every stone once) | exp2 (four rounds)
+  std::string experiment = "exp1";  // exp1 (every stone once) | exp2 (four rounds) | pile (clear a pile)
   int rounds = 0;                   // 0: the experiment's (exp1: 1, exp2: 4)
   int max_attempts = 2;             // grasps per stone and round
   double registration_period = 5.0;   // [s] Sec. 6.2: registration triggered every 5 s
@@ -70,6 +75,9 @@ struct ExperimentConfig {
   /// Lowering ends when the ground carries this share of the stone's weight (the arm's load has
   /// fallen to the rest): the stone sits before the jaws open (PhysicsConfig::place_support_fraction).
   double place_support = 0.8;
+  /// Clearing a pile (issue #21): a stone still on the pile whose surface moved more than this
+  /// during a move (truth: scoring only) counts as the pile having shifted.
+  double pile_shift = 0.05;  // [m]
   /// Injected failure (tests): the friction of the physics for the grasp of move `inject_move`
   /// (1-based over the experiment, first attempt only); 0: off.
   double inject_friction = 0.0;
@@ -104,6 +112,7 @@ struct ExperimentConfig {
     v("place_depth", place_depth, "[m] commanded below the expected contact (lowering stops on contact)");
     v("ground_radius", ground_radius, "[m] map points this close give a target's ground height");
     v("place_support", place_support, "lowering ends when the ground carries this share of the weight");
+    v("pile_shift", pile_shift, "[m] pile: a stone left on it moved this much during a move: the pile shifted");
     v("inject_friction", inject_friction, "tests: friction for one grasp (0: off)");
     v("inject_move", inject_move, "tests: the move (1-based) whose first grasp gets inject_friction");
     v("scene_voxel", scene_voxel, "[m] the report's clouds thinned to this voxel size");
@@ -157,6 +166,10 @@ struct GraspRecord {
   double sim_time = 0.0, wall_s = 0.0;
   double place_error_m = -1.0;  // physics: the stone at release vs where the gripper put it (truth)
   MoveRecord move;              // the database's side: Eq. 3 prediction, re-alignment, errors, ghosts
+  /// Truth: the largest surface displacement of a stone not yet moved (other than the grasped
+  /// one) during this attempt; on a pile, above pile_shift the pile shifted.
+  double others_moved_m = 0.0;
+  int others_loaded = 0;  // the machine's view at the pick: objects resting on the grasped one
 };
 
 struct ExperimentObject {
@@ -214,6 +227,8 @@ struct ExperimentResult {
   int placed = 0;                // ... whose stone ended within target_tolerance of its target (truth)
   int first_attempt_success = 0, within_attempts = 0;  // truth: the stone held and ended at its target
   int failures = 0, failures_detected = 0, false_alarms = 0;  // per attempt, truth vs detection
+  int pile_shifts = 0;           // attempts after which a stone left on the site moved > pile_shift
+  int resegmentations = 0;       // pile: the map re-segmented after each move
   ExperimentScene scene;  // for the report (not in the JSON)
 };
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <numbers>
 
 #include "cairn/core/error.hpp"
@@ -302,6 +303,27 @@ void Tracker::run_round(int round) {
   }
   resegment(rr);
   result.rounds.push_back(rr);
+}
+
+int Tracker::adopt_new_objects() {
+  const PointCloud map = machine_.mapper().map();
+  const auto t = truth();
+  const Isometry3d E = t->offset->map_offset(map);
+  const auto is_tracked = [&](auto pred) { return std::any_of(tracked_.begin(), tracked_.end(), pred); };
+  std::map<int, std::vector<Tracked>> on_stone;  // untracked objects per stone
+  for (const ObjectRecord& r : db_->objects()) {
+    if (is_tracked([&](const Tracked& x) { return x.object == r.id; })) continue;
+    double purity = 0.0;
+    const int k = stone_of(r.cloud, *t, E, &purity);
+    if (k < 0 || is_tracked([&](const Tracked& x) { return x.stone == k; })) continue;
+    on_stone[k].push_back({.stone = k, .object = r.id, .created_centroid = r.centroid, .E0 = E,
+                           .M = Isometry3d::Identity(), .purity = purity});
+  }
+  int adopted = 0;
+  for (const auto& [k, objects] : on_stone)
+    if (objects.size() == 1) tracked_.push_back(objects.front()), ++adopted;
+  result.stones_tracked = int(tracked_.size());
+  return adopted;
 }
 
 void Tracker::resegment(RoundRecord& rr) {

@@ -46,6 +46,10 @@ class Tracker {
   void run_round(int round);
   /// The round's re-segmentation of the rescanned map: every segment should be a known object.
   void resegment(RoundRecord& rr);
+  /// Objects of the database not yet tracked that lie on a stone no object tracks (truth), the
+  /// only one on it, are tracked from now on (a pile's stone that came out merged with its
+  /// neighbour and stands alone after the neighbour was picked). Returns how many.
+  int adopt_new_objects();
 
   // Steps shared by every kind of move.
   [[nodiscard]] std::unique_ptr<SurfaceTruth> truth() const;

@@ -36,6 +36,7 @@ void ObjectsConfig::validate() const {
   require(a.min_segment_points >= 1, "association.min_segment_points", "must be >= 1");
   require(a.distinct_rotation_deg > 0, "association.distinct_rotation_deg", "must be > 0");
   require(a.ambiguity_margin >= 0, "association.ambiguity_margin", "must be >= 0");
+  support.validate();
 }
 
 }  // namespace cairn

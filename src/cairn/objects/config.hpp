@@ -2,6 +2,8 @@
 // Parameters of the object database's map updates (Sec. 4.5), Table 3 values as defaults.
 #include <string>
 
+#include "cairn/objects/support_config.hpp"
+
 namespace cairn {
 
 /// Which map points a grasp removes (Sec. 4.5).
@@ -89,11 +91,13 @@ struct ObjectsConfig {
   GraspRemovalConfig grasp_removal;
   RealignConfig realign;
   AssociationConfig association;
+  SupportConfig support;
   template <class V>
   void visit(V& v) {
     v("grasp_removal", grasp_removal, "map points removed when an object is grasped (Sec. 4.5)");
     v("realign", realign, "ICP re-alignment of a released object to the rescanned map (Sec. 4.5)");
     v("association", association, "segments of a re-segmentation matched to stored objects");
+    v("support", support, "which object rests on which: the pick order on a pile (issue #21)");
   }
   /// Throws ConfigError naming the key of a value out of range.
   void validate() const;
