@@ -292,8 +292,18 @@ PointCloud colmap_points_cloud(const ColmapModel& model) {
   PointCloud cloud;
   cloud.reserve(model.points.size());
   cloud.colors.reserve(model.points.size());
+  // Georeferenced models (UTM, ~1e6 m) keep float precision relative to an origin, as read_cloud does.
+  Vec3d lo = Vec3d::Constant(std::numeric_limits<double>::infinity());
+  bool large = false;
   for (const auto& p : model.points) {
-    cloud.points.push_back(p.xyz.cast<float>());
+    lo = lo.cwiseMin(p.xyz);
+    large = large || p.xyz.cwiseAbs().maxCoeff() > ReadOptions{}.recenter_threshold;
+  }
+  if (large) cloud.origin = lo.array().floor().matrix();
+  for (const auto& p : model.points) {
+    cloud.points.push_back((p.xyz - cloud.origin).cast<float>());
+    if (!cloud.points.back().allFinite())
+      throw InputError("COLMAP point " + std::to_string(p.id) + " lies too far from the others for float coordinates");
     cloud.colors.push_back(p.color);
   }
   return cloud;

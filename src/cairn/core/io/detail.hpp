@@ -55,6 +55,12 @@ std::string_view line_ending(std::string_view text);
 std::vector<std::string_view> split_words(std::string_view line);
 /// Number parsing (std::from_chars, also accepts a leading '+'); false if not entirely a number.
 bool parse_number(std::string_view token, double& value);
+/// Largest count a header may give: more than any file a reader is handed holds, and small
+/// enough that the count times a record size cannot overflow.
+inline constexpr double kMaxCount = 1099511627776.0;  // 2^40
+/// A count from a header or an index: a whole number in [0, kMaxCount], else InputError naming
+/// `what` (the cast of a larger or non-finite double to an integer is undefined behaviour).
+std::size_t parse_count(std::string_view token, const path& file, std::string_view what);
 
 /// Whitespace-separated tokens of a text buffer, tracking line numbers (LF, CRLF or CR).
 /// `file` (named in errors) must outlive the Tokens.

@@ -231,6 +231,13 @@ bool parse_number(std::string_view token, double& value) {
   return ec == std::errc{} && end == token.data() + token.size();
 }
 
+std::size_t parse_count(std::string_view token, const path& file, std::string_view what) {
+  double v = 0;
+  if (!parse_number(token, v) || !(v >= 0 && v <= kMaxCount) || v != std::floor(v))
+    fail(file, "bad " + std::string(what) + " '" + std::string(token) + "'");
+  return static_cast<std::size_t>(v);
+}
+
 // ---- Tokens
 
 Tokens::Tokens(std::string_view text, const path& file, std::size_t first_line)
@@ -446,6 +453,9 @@ ReadResult finish(RawCloud raw, const path& file, const ReadOptions& options) {
   cloud.origin = raw.origin ? *raw.origin : recenter_origin(raw.xyz, options.recenter_threshold);
   cloud.points.resize(n);
   for (std::size_t i = 0; i < n; ++i) cloud.points[i] = (raw.xyz[i] - cloud.origin).cast<float>();
+  for (std::uint32_t i : kept)  // a finite double beyond a float's range (~3.4e38) from the origin
+    if (!cloud.points[i].allFinite())
+      fail(file, "point " + std::to_string(i) + " lies too far from the others to be held in float coordinates");
   cloud.check_consistent(file.string());
 
   ReadResult result;

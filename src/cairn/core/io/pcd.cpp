@@ -189,10 +189,8 @@ Scalar scalar_of(char kind, std::size_t size, const path& file) {
 }
 
 std::size_t to_size(const std::vector<std::string_view>& words, std::size_t i, const path& file) {
-  double v = 0;
-  if (i >= words.size() || !detail::parse_number(words[i], v) || v < 0 || v != std::floor(v))
-    fail(file, "bad number in PCD header");
-  return static_cast<std::size_t>(v);
+  if (i >= words.size()) fail(file, "bad number in PCD header");
+  return detail::parse_count(words[i], file, "number in PCD header");
 }
 
 Data parse_data(const std::vector<std::string_view>& words, const path& file) {

@@ -78,13 +78,6 @@ std::string_view type_name(Scalar type) {
       ->name;
 }
 
-std::size_t parse_count(std::string_view word, const path& file) {
-  double v = 0;
-  if (!detail::parse_number(word, v) || v < 0 || v != std::floor(v))
-    fail(file, "bad PLY element count '" + std::string(word) + "'");
-  return static_cast<std::size_t>(v);
-}
-
 Encoding parse_encoding(std::string_view word, const path& file) {
   if (word == "ascii") return Encoding::Ascii;
   if (word == "binary_little_endian") return Encoding::BinaryLittle;
@@ -110,7 +103,7 @@ void parse_header_line(std::string_view line, Header& h, const path& file) {
   } else if (w[0] == "format" && w.size() >= 2) {
     h.encoding = parse_encoding(w[1], file);
   } else if (w[0] == "element" && w.size() == 3) {
-    h.elements.push_back({std::string(w[1]), parse_count(w[2], file), {}});
+    h.elements.push_back({std::string(w[1]), detail::parse_count(w[2], file, "PLY element count"), {}});
   } else if (w[0] == "property" && !h.elements.empty()) {
     h.elements.back().props.push_back(parse_property(w, file));
   } else {
@@ -197,7 +190,7 @@ bool read_record(In& in, const Element& e, double* scalars, std::size_t wanted_l
     }
     double count = 0;
     if (!in.value(*p.count_type, count)) return false;
-    if (count < 0 || count > kMaxListLength)
+    if (!(count >= 0 && count <= double(kMaxListLength)) || count != std::floor(count))  // NaN too
       fail(file, "bad PLY list length " + std::to_string(count));
     const auto length = static_cast<std::size_t>(count);
     if (k != wanted_list) {

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -150,12 +151,14 @@ std::vector<ScanInfo> read_scan_index(const std::filesystem::path& file) {
     if (p.size() != 6) detail::fail(file, "line " + std::to_string(ln) + ": expected 6 values");
     ScanInfo s;
     s.sensor = p[0];
-    s.index = static_cast<int>(number(file, ln, p[1]));
+    const std::string at = "line " + std::to_string(ln) + ": ";
+    const std::size_t index = detail::parse_count(p[1], file, at + "sweep index");
+    if (index > std::size_t(std::numeric_limits<int>::max())) detail::fail(file, at + "sweep index too large");
+    s.index = static_cast<int>(index);
     s.t_start = number(file, ln, p[2]);
     s.t_end = number(file, ln, p[3]);
-    const double n = number(file, ln, p[4]);
-    if (n < 0 || s.t_end < s.t_start) detail::fail(file, "line " + std::to_string(ln) + ": invalid sweep");
-    s.num_points = static_cast<std::size_t>(n);
+    s.num_points = detail::parse_count(p[4], file, at + "point count");
+    if (s.t_end < s.t_start) detail::fail(file, at + "invalid sweep (t_end before t_start)");
     s.file = p[5];
     scans.push_back(std::move(s));
   }

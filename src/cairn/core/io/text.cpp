@@ -164,9 +164,7 @@ std::vector<std::size_t> parse_shape(std::string_view value, const path& file) {
   split_values(value.substr(1, close - 1), parts);
   std::vector<std::size_t> shape;
   for (const auto p : parts) {
-    double v = 0;
-    if (!detail::parse_number(p, v) || v < 0) fail(file, "bad NumPy shape");
-    shape.push_back(static_cast<std::size_t>(v));
+    shape.push_back(detail::parse_count(p, file, "NumPy shape"));
   }
   return shape;
 }
@@ -235,10 +233,7 @@ RawCloud read_vtk(std::string_view bytes, const path& file) {
                    : "bad VTK encoding line (expected ASCII)");
   auto words = next();
   while (words.size() < 2 || words[0] != "POINTS") words = next();
-  double count = 0;
-  if (!parse_number(words[1], count) || count < 0)
-    fail(file, at_line(line_no) + "bad POINTS count");
-  const auto n = static_cast<std::size_t>(count);
+  const std::size_t n = parse_count(words[1], file, at_line(line_no) + "POINTS count");
   Tokens tokens(bytes.substr(pos), file, line_no + 1);
   std::vector<double> values;
   for (std::size_t i = 0; i < n; ++i)
