@@ -4,10 +4,12 @@ function(cairn_target_options target)
   # defaults ({.res_voxel = 0.05}), which is the style of our config structs.
   target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow -Wnon-virtual-dtor
                                            -Wno-missing-field-initializers)
+  # float-cast-overflow (not part of `undefined`): a NaN or out-of-range double cast to an integer
+  # (a voxel index of a NaN point) is undefined behaviour; the kernels must never do it.
   if(CAIRN_SANITIZE)
-    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
-                                             -fno-sanitize-recover=undefined)
-    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined,float-cast-overflow
+                                             -fno-omit-frame-pointer -fno-sanitize-recover=all)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined,float-cast-overflow)
   endif()
 endfunction()
 
@@ -19,7 +21,7 @@ function(cairn_add_library name)
   target_link_libraries(${name} PUBLIC ${ARG_DEPS})
   cairn_target_options(${name})
   if(CAIRN_SANITIZE)
-    target_link_options(${name} INTERFACE -fsanitize=address,undefined)
+    target_link_options(${name} INTERFACE -fsanitize=address,undefined,float-cast-overflow)
   endif()
 endfunction()
 

@@ -1,6 +1,7 @@
 #include "cairn/core/kdtree.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <nanoflann.hpp>
 #include <numeric>
 
@@ -9,10 +10,15 @@ namespace cairn {
 // class with external linkage has members of internal types once the file is in a unity batch.
 namespace kdtree_detail {
 
+/// The points nanoflann indexes: all of them, or (when some have a NaN or infinite coordinate,
+/// which no distance can be computed to) the finite ones through `finite`.
 struct SpanAdaptor {
   std::span<const Vec3f> pts;
-  [[nodiscard]] std::size_t kdtree_get_point_count() const { return pts.size(); }
-  [[nodiscard]] float kdtree_get_pt(std::size_t i, std::size_t dim) const { return pts[i][int(dim)]; }
+  const std::uint32_t* finite = nullptr;  // indexed position -> point index; null: identity
+  std::size_t count = 0;
+  [[nodiscard]] std::size_t kdtree_get_point_count() const { return count; }
+  [[nodiscard]] std::uint32_t id(std::size_t i) const { return finite ? finite[i] : std::uint32_t(i); }
+  [[nodiscard]] float kdtree_get_pt(std::size_t i, std::size_t dim) const { return pts[id(i)][int(dim)]; }
   template <class Box>
   bool kdtree_get_bbox(Box&) const {
     return false;
@@ -25,6 +31,7 @@ using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<f
 /// nanoflann result set that forwards every hit to a callback.
 struct CallbackResultSet {
   float radius_sq;
+  const SpanAdaptor* points;
   void* ctx;
   void (*visit)(void*, std::uint32_t, float);
   std::size_t count = 0;
@@ -33,7 +40,7 @@ struct CallbackResultSet {
   [[nodiscard]] bool full() const { return true; }
   bool addPoint(float d2, std::uint32_t i) {
     if (d2 < radius_sq) {
-      visit(ctx, i, d2);
+      visit(ctx, points->id(i), d2);
       ++count;
     }
     return true;
@@ -44,11 +51,23 @@ struct CallbackResultSet {
 }  // namespace kdtree_detail
 
 struct KdTree::Impl {
+  bool all_finite;
+  std::vector<std::uint32_t> finite;  // the finite points' indices, when some are not (NaN, Inf)
   kdtree_detail::SpanAdaptor adaptor;
   kdtree_detail::Index index;
   Impl(std::span<const Vec3f> p, int leaf)
       // nanoflann's constructor builds the index (a second buildIndex() would build it twice).
-      : adaptor{p}, index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf))) {}
+      : all_finite(std::all_of(p.begin(), p.end(), [](const Vec3f& q) { return q.allFinite(); })),
+        finite(finite_ids(p, all_finite)),
+        adaptor{p, all_finite ? nullptr : finite.data(), all_finite ? p.size() : finite.size()},
+        index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf))) {}
+
+  static std::vector<std::uint32_t> finite_ids(std::span<const Vec3f> p, bool all_finite) {
+    std::vector<std::uint32_t> ids;
+    for (std::size_t i = 0; !all_finite && i < p.size(); ++i)
+      if (p[i].allFinite()) ids.push_back(std::uint32_t(i));
+    return ids;
+  }
 };
 
 KdTree::KdTree(std::span<const Vec3f> points, int leaf_size)
@@ -58,19 +77,21 @@ KdTree::KdTree(KdTree&&) noexcept = default;
 KdTree& KdTree::operator=(KdTree&&) noexcept = default;
 
 void KdTree::knn(const Vec3f& query, std::size_t k, Neighbors& out) const {
-  k = std::min(k, points_.size());
+  k = query.allFinite() ? std::min(k, impl_->adaptor.count) : 0;  // no distance to a NaN query
   out.indices.resize(k);
   out.sq_dists.resize(k);
   if (k == 0) return;
   const auto found = impl_->index.knnSearch(query.data(), k, out.indices.data(), out.sq_dists.data());
   out.indices.resize(found);
   out.sq_dists.resize(found);
+  if (!impl_->all_finite)
+    for (auto& i : out.indices) i = impl_->adaptor.id(i);
 }
 
 void KdTree::radius_visit(const Vec3f& query, float radius, void* ctx,
                           void (*visit)(void*, std::uint32_t, float)) const {
-  if (points_.empty()) return;
-  kdtree_detail::CallbackResultSet rs{radius * radius, ctx, visit};
+  if (impl_->adaptor.count == 0 || !query.allFinite()) return;
+  kdtree_detail::CallbackResultSet rs{radius * radius, &impl_->adaptor, ctx, visit};
   impl_->index.findNeighbors(rs, query.data(), nanoflann::SearchParams(0, 0.0f, false));
 }
 
@@ -95,8 +116,11 @@ void KdTree::radius(const Vec3f& query, float radius, Neighbors& out, bool sorte
 
 std::uint32_t KdTree::nearest(const Vec3f& query, float* sq_dist) const {
   std::uint32_t idx = 0;
-  float d2 = 0.0f;
-  impl_->index.knnSearch(query.data(), 1, &idx, &d2);
+  float d2 = std::numeric_limits<float>::infinity();  // no finite point, or a NaN query: none near
+  if (impl_->adaptor.count > 0 && query.allFinite()) {
+    impl_->index.knnSearch(query.data(), 1, &idx, &d2);
+    idx = impl_->adaptor.id(idx);
+  }
   if (sq_dist) *sq_dist = d2;
   return idx;
 }

@@ -21,7 +21,8 @@ struct Neighbors {
 };
 
 /// Static 3-D kd-tree. The indexed points must outlive the tree and stay unchanged.
-/// Queries are const and thread-safe.
+/// Queries are const and thread-safe. Points with a NaN or infinite coordinate are never found
+/// (no distance to them exists); a non-finite query finds nothing.
 class KdTree {
  public:
   static constexpr int kDefaultLeafSize = 16;
@@ -39,7 +40,8 @@ class KdTree {
   void knn(const Vec3f& query, std::size_t k, Neighbors& out) const;
   /// All neighbours with distance < radius; sorted by distance when `sorted`.
   void radius(const Vec3f& query, float radius, Neighbors& out, bool sorted = false) const;
-  /// Index of the nearest point (the tree must not be empty); squared distance in *sq_dist.
+  /// Index of the nearest point; squared distance in *sq_dist (+inf, index 0, when nothing can be
+  /// found: no finite point or a non-finite query).
   [[nodiscard]] std::uint32_t nearest(const Vec3f& query, float* sq_dist = nullptr) const;
 
   /// Calls f(index, sq_dist) for each neighbour with distance < radius (no allocation).

@@ -5,6 +5,7 @@
 #include <tbb/parallel_sort.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 
 #include "cairn/core/error.hpp"
@@ -14,6 +15,7 @@ namespace {
 
 constexpr int kBitsPerAxis = 21;  // 3 × 21 bits packed into one 64-bit key
 constexpr std::int64_t kMaxCells = std::int64_t{1} << kBitsPerAxis;
+constexpr double kMaxIndex = 1 << 30;  // |voxel index| a float product can reach and an int holds
 
 struct KeyedIndex {
   std::uint64_t key;
@@ -27,24 +29,39 @@ Eigen::Array3i cell_of(const Vec3f& p, float inv_leaf) {
           int(std::floor(p.z() * inv_leaf))};
 }
 
+/// Bounds of the finite points (NaN or infinite coordinates belong to no voxel); empty if none.
+Aabb finite_bounds(std::span<const Vec3f> points) {
+  Aabb box;
+  for (const Vec3f& p : points)
+    if (p.allFinite()) box.min = box.min.cwiseMin(p), box.max = box.max.cwiseMax(p);
+  return box;
+}
+
 }  // namespace
 
 VoxelPartition voxelize(std::span<const Vec3f> points, double leaf) {
   if (!(leaf > 0.0)) throw ConfigError("voxel grid: leaf size must be > 0, got " + std::to_string(leaf));
   VoxelPartition part;
-  if (points.empty()) return part;
   const float inv_leaf = 1.0f / float(leaf);
-  const Aabb box = bounds(points);
-  const Eigen::Array3i lo = cell_of(box.min, inv_leaf);
-  const Eigen::Array3i hi = cell_of(box.max, inv_leaf);
+  const Aabb box = finite_bounds(points);
+  if (!(box.min.array() <= box.max.array()).all()) return part;  // no finite point
+  // Checked in double before any cast to int (a cast out of range is undefined behaviour).
+  const Eigen::Array3d lo_d = (box.min.cast<double>() * double(inv_leaf)).array().floor();
+  const Eigen::Array3d hi_d = (box.max.cast<double>() * double(inv_leaf)).array().floor();
   for (int a = 0; a < 3; ++a)
-    if (std::int64_t(hi[a]) - lo[a] + 1 >= kMaxCells)
+    if (hi_d[a] - lo_d[a] + 1 >= double(kMaxCells) || std::abs(lo_d[a]) > kMaxIndex || std::abs(hi_d[a]) > kMaxIndex)
       throw ConfigError("voxel grid: leaf size " + std::to_string(leaf) +
                         " m is too small for the cloud extent (more than 2^21 voxels per axis)");
+  const Eigen::Array3i lo = cell_of(box.min, inv_leaf);
 
+  constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();  // above every 63-bit key
   std::vector<KeyedIndex> keyed(points.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 4096), [&](const auto& r) {
     for (auto i = r.begin(); i != r.end(); ++i) {
+      if (!points[i].allFinite()) {
+        keyed[i] = {kNone, std::uint32_t(i)};
+        continue;
+      }
       const Eigen::Array3i c = cell_of(points[i], inv_leaf) - lo;
       // x fastest, as PCL's divb_mul ordering: key = x + y·nx + z·nx·ny (here: bit-packed z,y,x)
       keyed[i] = {(std::uint64_t(c[2]) << (2 * kBitsPerAxis)) | (std::uint64_t(c[1]) << kBitsPerAxis) |
@@ -53,6 +70,7 @@ VoxelPartition voxelize(std::span<const Vec3f> points, double leaf) {
     }
   });
   tbb::parallel_sort(keyed.begin(), keyed.end());
+  while (!keyed.empty() && keyed.back().key == kNone) keyed.pop_back();  // the non-finite points
 
   part.order.resize(keyed.size());
   part.offsets.push_back(0);

@@ -31,7 +31,8 @@ struct VoxelPartition {
   }
 };
 
-/// Groups points by voxel. Throws ConfigError if leaf <= 0 or the extent needs > 2^21 voxels
+/// Groups points by voxel; a point with a NaN or infinite coordinate belongs to no voxel (PCL's
+/// VoxelGrid drops them too). Throws ConfigError if leaf <= 0 or the extent needs > 2^21 voxels
 /// per axis.
 [[nodiscard]] VoxelPartition voxelize(std::span<const Vec3f> points, double leaf);
 
