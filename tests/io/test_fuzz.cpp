@@ -307,6 +307,67 @@ void fuzz_all(const std::vector<Target>& targets, std::uint64_t seed) {
   EXPECT_TRUE(failures.empty()) << failures.size() << " failures";
 }
 
+/// Opening (and reading every sweep of) a run directory fails with an InputError whose message
+/// names `file` and contains `says`.
+void expect_refused(const fs::path& root, const std::string& file, const std::string& says) {
+  try {
+    const RunDirectory run = open_run_directory(root);
+    for (const ScanInfo& s : run.scans) (void)run.read_scan(s), (void)run.read_scan_truth(s);
+    ADD_FAILURE() << file << ": accepted, expected '" << says << "'";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(file), std::string::npos) << what;
+    EXPECT_NE(what.find(says), std::string::npos) << what;
+  }
+}
+
+// Each error a run directory can hold, named with its file (issue #20 item 6).
+TEST(RunDirectoryErrors, EachIsNamedWithItsFile) {
+  const fs::path root = test::temp_dir("run_errors") / "run";
+  const auto with = [&](const std::string& file, const std::string& bytes) {
+    fs::remove_all(root);
+    write_run(root);
+    fs::create_directories(root / "truth" / "scans" / "H");
+    write_npy_int32(root / "truth" / "scans" / "H" / "000000.npy", std::vector<std::int32_t>(12, -1));
+    if (!file.empty()) write_bytes(root / file, bytes);
+  };
+  with("", "");
+  EXPECT_NO_THROW((void)open_run_directory(root));
+  with("run.json", R"({"format_version": 1, "scenario": )");
+  expect_refused(root, "run.json", "invalid JSON");
+  with("run.json", R"({"format_version": 2})");
+  expect_refused(root, "run.json", "format_version 2");
+  with("run.json", R"({"scenario": "exp1"})");
+  expect_refused(root, "run.json", "format_version");
+  with("state/cabin_poses.tum", "0.0 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n0.1 0 0 0 0 0 0 1\n");
+  expect_refused(root, "cabin_poses.tum", "timestamps must increase");
+  with("state/cabin_poses.tum", "# no poses\n");
+  expect_refused(root, "cabin_poses.tum", "no poses");
+  with("state/joint_states.csv", "time,swing\n0.2,0.1\n0.1,0.2\n");
+  expect_refused(root, "joint_states.csv", "time goes backwards");
+  with("state/joint_states.csv", "time,swing\n0.0,0.1,7\n");
+  expect_refused(root, "joint_states.csv", "expected 2 values");
+  with("scans/index.csv", "sensor,index,t_start,t_end,num_points,file\nH,0,0,0.1,13,scans/H/000000.ply\n");
+  expect_refused(root, "000000.ply", "the scan index says 13");
+  with("scans/index.csv", "sensor,index,t_start,t_end,num_points,file\nX,0,0,0.1,12,scans/H/000000.ply\n");
+  expect_refused(root, "index.csv", "sensor 'X' has no extrinsics");
+  with("scans/index.csv", "sensor,index,t_start,t_end,num_points,file\nH,0,0.2,0.1,12,scans/H/000000.ply\n");
+  expect_refused(root, "index.csv", "t_end before t_start");
+  with("extrinsics.json", R"({"T_cabin_sensor": {"H": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}})");
+  expect_refused(root, "extrinsics.json", "T_cabin_sensor");
+  with("extrinsics.json", R"({"T_cabin_sensor": {"H": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,1]]}})");
+  expect_refused(root, "extrinsics.json", "not a rigid transform");
+  with("extrinsics.json", R"({"sensors": {}})");
+  expect_refused(root, "extrinsics.json", "T_cabin_sensor");
+  with("truth/scans/H/000000.npy", "");
+  write_npy_int32(root / "truth" / "scans" / "H" / "000000.npy", std::vector<std::int32_t>(5, -1));
+  expect_refused(root, "000000.npy", "5 labels for 12 points");
+  fs::remove_all(root);
+  write_run(root);
+  fs::remove(root / "robot.json");
+  expect_refused(root, "robot.json", "robot.json");
+}
+
 TEST(Fuzz, PointCloudReadersAcceptOrRefuseEveryMutatedFile) {
   fuzz_all(cloud_targets(test::temp_dir("fuzz_clouds")), 1000);
 }

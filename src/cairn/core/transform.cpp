@@ -41,6 +41,19 @@ Similarity Similarity::from_matrix(const Eigen::Matrix4d& m) {
   return {s, R, m.topRightCorner<3, 1>()};
 }
 
+Eigen::Isometry3d rigid_from_matrix(const Eigen::Matrix4d& m, const std::string& what) {
+  constexpr double kTolerance = 1e-6;
+  try {
+    const Similarity S = Similarity::from_matrix(m);
+    if (std::abs(S.scale - 1.0) > kTolerance) throw InputError("transform: scaled by " + std::to_string(S.scale));
+  } catch (const InputError& e) {
+    throw InputError(what + ": not a rigid transform (" + e.what() + ")");
+  }
+  Eigen::Isometry3d T;
+  T.matrix() = m;
+  return T;
+}
+
 void transform_cloud(PointCloud& cloud, const Similarity& S) {
   const bool recentred = !cloud.origin.isZero();
   Eigen::Vector3d new_origin = S * cloud.origin;

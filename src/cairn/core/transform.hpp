@@ -3,6 +3,7 @@
 // Rigid transforms are Eigen::Isometry3d; a similarity adds a uniform scale (SfM → metric,
 // Sec. 4.1). JSON form: a 4×4 row-major nested array.
 #include <Eigen/Geometry>
+#include <string>
 #include <vector>
 #include <nlohmann/json.hpp>
 
@@ -57,5 +58,8 @@ struct StampedPose {
 nlohmann::json matrix_to_json(const Eigen::Matrix4d& m);
 /// Throws InputError unless j is a 4×4 array of numbers.
 Eigen::Matrix4d matrix_from_json(const nlohmann::json& j);
+/// The rigid transform a 4×4 matrix holds; InputError (prefixed by `what`) unless it is finite,
+/// its last row 0 0 0 1 and its 3×3 block a rotation (Similarity::from_matrix with scale 1).
+[[nodiscard]] Eigen::Isometry3d rigid_from_matrix(const Eigen::Matrix4d& m, const std::string& what);
 
 }  // namespace cairn

@@ -244,12 +244,14 @@ RunDirectory open_run_directory(const std::filesystem::path& root) {
   }
   run.robot = read_robot_model((root / "robot.json").string());
   const nlohmann::json ext = read_json(root / "extrinsics.json");
+  std::string key = "T_cabin_sensor";
   try {
-    for (const auto& [name, value] : ext.at("T_cabin_sensor").items()) {
-      run.T_cabin_sensor[name] = Eigen::Isometry3d(matrix_from_json(value));
+    for (const auto& [name, value] : ext.at(key).items()) {
+      key = "T_cabin_sensor " + name;
+      run.T_cabin_sensor[name] = rigid_from_matrix(matrix_from_json(value), "the matrix");
     }
   } catch (const std::exception& e) {
-    throw InputError((root / "extrinsics.json").string() + ": " + e.what());
+    throw InputError((root / "extrinsics.json").string() + ": " + key + ": " + e.what());
   }
   run.scans = read_scan_index(root / "scans" / "index.csv");
   for (const auto& s : run.scans) {
