@@ -10,19 +10,21 @@ namespace cairn {
 // class with external linkage has members of internal types once the file is in a unity batch.
 namespace kdtree_detail {
 
-/// The points nanoflann indexes: all of them, or (when some have a NaN or infinite coordinate,
-/// which no distance can be computed to) the finite ones through `finite`.
+/// The points nanoflann indexes (all of them, or a compact copy of the finite ones).
 struct SpanAdaptor {
   std::span<const Vec3f> pts;
-  const std::uint32_t* finite = nullptr;  // indexed position -> point index; null: identity
-  std::size_t count = 0;
-  [[nodiscard]] std::size_t kdtree_get_point_count() const { return count; }
-  [[nodiscard]] std::uint32_t id(std::size_t i) const { return finite ? finite[i] : std::uint32_t(i); }
-  [[nodiscard]] float kdtree_get_pt(std::size_t i, std::size_t dim) const { return pts[id(i)][int(dim)]; }
+  [[nodiscard]] std::size_t kdtree_get_point_count() const { return pts.size(); }
+  [[nodiscard]] float kdtree_get_pt(std::size_t i, std::size_t dim) const { return pts[i][int(dim)]; }
   template <class Box>
   bool kdtree_get_bbox(Box&) const {
     return false;
   }
+};
+
+/// Indexed position -> point index: identity, or (some points not finite) through `ids`.
+struct IdMap {
+  const std::uint32_t* ids = nullptr;
+  [[nodiscard]] std::uint32_t operator()(std::uint32_t i) const { return ids ? ids[i] : i; }
 };
 
 using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, SpanAdaptor>,
@@ -31,7 +33,7 @@ using Index = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<f
 /// nanoflann result set that forwards every hit to a callback.
 struct CallbackResultSet {
   float radius_sq;
-  const SpanAdaptor* points;
+  IdMap id;
   void* ctx;
   void (*visit)(void*, std::uint32_t, float);
   std::size_t count = 0;
@@ -40,7 +42,7 @@ struct CallbackResultSet {
   [[nodiscard]] bool full() const { return true; }
   bool addPoint(float d2, std::uint32_t i) {
     if (d2 < radius_sq) {
-      visit(ctx, points->id(i), d2);
+      visit(ctx, id(i), d2);
       ++count;
     }
     return true;
@@ -50,23 +52,36 @@ struct CallbackResultSet {
 
 }  // namespace kdtree_detail
 
+/// Points with a NaN or infinite coordinate have no distance to anything: when there are such,
+/// the tree indexes a compact copy of the finite points (the common all-finite case copies
+/// nothing and pays no indirection per distance) and maps what it finds back.
 struct KdTree::Impl {
   bool all_finite;
-  std::vector<std::uint32_t> finite;  // the finite points' indices, when some are not (NaN, Inf)
+  std::vector<std::uint32_t> ids;  // the finite points' indices, when some are not
+  std::vector<Vec3f> compact;      // those points
   kdtree_detail::SpanAdaptor adaptor;
   kdtree_detail::Index index;
   Impl(std::span<const Vec3f> p, int leaf)
       // nanoflann's constructor builds the index (a second buildIndex() would build it twice).
       : all_finite(std::all_of(p.begin(), p.end(), [](const Vec3f& q) { return q.allFinite(); })),
-        finite(finite_ids(p, all_finite)),
-        adaptor{p, all_finite ? nullptr : finite.data(), all_finite ? p.size() : finite.size()},
+        ids(all_finite ? std::vector<std::uint32_t>{} : finite_ids(p)),
+        compact(gather(p, ids)),
+        adaptor{all_finite ? p : std::span<const Vec3f>(compact)},
         index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf))) {}
+  [[nodiscard]] kdtree_detail::IdMap id() const { return {all_finite ? nullptr : ids.data()}; }
+  [[nodiscard]] std::size_t count() const { return adaptor.pts.size(); }
 
-  static std::vector<std::uint32_t> finite_ids(std::span<const Vec3f> p, bool all_finite) {
+  static std::vector<std::uint32_t> finite_ids(std::span<const Vec3f> p) {
     std::vector<std::uint32_t> ids;
-    for (std::size_t i = 0; !all_finite && i < p.size(); ++i)
+    for (std::size_t i = 0; i < p.size(); ++i)
       if (p[i].allFinite()) ids.push_back(std::uint32_t(i));
     return ids;
+  }
+  static std::vector<Vec3f> gather(std::span<const Vec3f> p, const std::vector<std::uint32_t>& ids) {
+    std::vector<Vec3f> c;
+    c.reserve(ids.size());
+    for (std::uint32_t i : ids) c.push_back(p[i]);
+    return c;
   }
 };
 
@@ -77,7 +92,7 @@ KdTree::KdTree(KdTree&&) noexcept = default;
 KdTree& KdTree::operator=(KdTree&&) noexcept = default;
 
 void KdTree::knn(const Vec3f& query, std::size_t k, Neighbors& out) const {
-  k = query.allFinite() ? std::min(k, impl_->adaptor.count) : 0;  // no distance to a NaN query
+  k = query.allFinite() ? std::min(k, impl_->count()) : 0;  // no distance to a NaN query
   out.indices.resize(k);
   out.sq_dists.resize(k);
   if (k == 0) return;
@@ -85,13 +100,13 @@ void KdTree::knn(const Vec3f& query, std::size_t k, Neighbors& out) const {
   out.indices.resize(found);
   out.sq_dists.resize(found);
   if (!impl_->all_finite)
-    for (auto& i : out.indices) i = impl_->adaptor.id(i);
+    for (auto& i : out.indices) i = impl_->id()(i);
 }
 
 void KdTree::radius_visit(const Vec3f& query, float radius, void* ctx,
                           void (*visit)(void*, std::uint32_t, float)) const {
-  if (impl_->adaptor.count == 0 || !query.allFinite()) return;
-  kdtree_detail::CallbackResultSet rs{radius * radius, &impl_->adaptor, ctx, visit};
+  if (impl_->count() == 0 || !query.allFinite()) return;
+  kdtree_detail::CallbackResultSet rs{radius * radius, impl_->id(), ctx, visit};
   impl_->index.findNeighbors(rs, query.data(), nanoflann::SearchParams(0, 0.0f, false));
 }
 
@@ -117,9 +132,9 @@ void KdTree::radius(const Vec3f& query, float radius, Neighbors& out, bool sorte
 std::uint32_t KdTree::nearest(const Vec3f& query, float* sq_dist) const {
   std::uint32_t idx = 0;
   float d2 = std::numeric_limits<float>::infinity();  // no finite point, or a NaN query: none near
-  if (impl_->adaptor.count > 0 && query.allFinite()) {
+  if (impl_->count() > 0 && query.allFinite()) {
     impl_->index.knnSearch(query.data(), 1, &idx, &d2);
-    idx = impl_->adaptor.id(idx);
+    idx = impl_->id()(idx);
   }
   if (sq_dist) *sq_dist = d2;
   return idx;
