@@ -2,6 +2,7 @@
 #include "cairn_ros/messages.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "cairn/core/error.hpp"
@@ -129,7 +130,10 @@ Cloud from_msg(const sensor_msgs::PointCloud2& m, bool decode, const std::string
   c.xyz.reserve(3 * n);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint8_t* p = m.data.data() + (i / m.width) * m.row_step + (i % m.width) * m.point_step;
-    for (const long o : {ox, oy, oz}) c.xyz.push_back(read_at<float>(p + o));
+    const float x = read_at<float>(p + ox), y = read_at<float>(p + oy), z = read_at<float>(p + oz);
+    // No return (organised LiDAR clouds mark it with NaN): no point, as PCL's removeNaNFromPointCloud.
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;
+    c.xyz.insert(c.xyz.end(), {x, y, z});
     if (ot >= 0) c.time.push_back(read_at<float>(p + ot));
     if (oring >= 0) c.ring.push_back(read_at<std::uint16_t>(p + oring));
     if (orgb >= 0) {

@@ -22,6 +22,7 @@ Transform from_pose(const geometry_msgs::Pose& m);
 sensor_msgs::PointCloud2 to_msg(const Cloud& c);
 /// The fields above back from any PointCloud2 that has float32 x y z (offsets from its fields;
 /// `decode` false: stamp and frame only). Throws InputError naming `what`.
+/// Points with a NaN or infinite coordinate (an organised cloud's "no return") are left out.
 Cloud from_msg(const sensor_msgs::PointCloud2& m, bool decode, const std::string& what);
 
 }  // namespace cairn::bag::file

@@ -2,18 +2,21 @@
 // against the run directory it was written from, Debian's own `rosbag info` and `rosbag check` on
 // it, mapping straight from the bag against mapping the directory, and bad bags.
 #include "cairn_ros/run_bag.hpp"
+#include "cairn_ros/bag_file.hpp"
 
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/kdtree.hpp"
 #include "support/process.hpp"
 #include "support/shared_runs.hpp"
+#include "support/test_data.hpp"
 
 namespace cairn::bag {
 namespace {
@@ -152,6 +155,28 @@ TEST(RunBag, BadBagsAreInputErrors) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("/nothing"), std::string::npos) << e.what();
   }
+}
+
+// An organised LiDAR cloud marks "no return" with NaN: such points never reach cairn (issue #20
+// item 6; the kernels would otherwise see them).
+TEST(RunBag, NanPointsOfAPointCloud2AreLeftOut) {
+  const auto path = test::temp_dir("bag_nan") / "nan.bag";
+  constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+  file::Cloud c{.stamp = 1.5, .frame = "H"};
+  c.xyz = {1, 2, 3, kNaN, kNaN, kNaN, 4, 5, 6, 7, std::numeric_limits<float>::infinity(), 8, 9, 10, 11};
+  c.time = {0.0f, 0.01f, 0.02f, 0.03f, 0.04f};
+  c.ring = {1, 2, 3, 4, 5};
+  {
+    file::Writer writer(path.string());
+    writer.cloud("/points", c);
+    writer.close();
+  }
+  file::Reader reader(path.string(), {"/points"}, true);
+  file::Message m;
+  ASSERT_TRUE(reader.next(m));
+  EXPECT_EQ(m.cloud.xyz, (std::vector<float>{1, 2, 3, 4, 5, 6, 9, 10, 11}));
+  EXPECT_EQ(m.cloud.time, (std::vector<float>{0.0f, 0.02f, 0.04f}));
+  EXPECT_EQ(m.cloud.ring, (std::vector<std::uint16_t>{1, 3, 5}));
 }
 
 }  // namespace

@@ -81,10 +81,11 @@ Image render_top_view(const PointCloud& cloud, const std::vector<Rgb>& colors, d
   const float zr = std::max(1e-3f, box.max.z() - box.min.z());
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     const Vec3f& p = cloud.points[i];
-    if (p.x() < box.min.x() || p.y() < box.min.y() || p.x() > box.max.x() || p.y() > box.max.y()) continue;
+    if (!p.allFinite() || p.x() < box.min.x() || p.y() < box.min.y() || p.x() > box.max.x() || p.y() > box.max.y())
+      continue;
     const int x0 = kMargin + int((p.x() - box.min.x()) * ppm);
     const int y0 = img.height - 1 - kMargin - int((p.y() - box.min.y()) * ppm);
-    const float shade = 0.55f + 0.45f * (p.z() - box.min.z()) / zr;  // higher = brighter
+    const float shade = std::clamp(0.55f + 0.45f * (p.z() - box.min.z()) / zr, 0.0f, 1.0f);  // higher = brighter
     const Rgb c = colors[i];
     for (int y = y0; y < y0 + kSplat; ++y)  // each point a small square splat
       for (int x = x0; x < x0 + kSplat; ++x) {

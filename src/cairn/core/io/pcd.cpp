@@ -354,7 +354,12 @@ double ascii_value(std::string_view token, const Field& f, std::size_t line, con
   if (!f.packed_color()) return v;
   if (f.kind == 'F' && !is_digits(token))
     return std::bit_cast<std::uint32_t>(static_cast<float>(v));
-  return std::isfinite(v) ? static_cast<std::uint32_t>(static_cast<std::int64_t>(v)) : 0;
+  // A packed colour is a 32-bit pattern (as unsigned or signed integer): anything else is no colour.
+  constexpr double kLow = -2147483648.0, kHigh = 4294967295.0;
+  if (!(v >= kLow && v <= kHigh))
+    fail(file, "line " + std::to_string(line) + ": packed colour " + std::string(token.substr(0, detail::kMaxQuotedLine)) +
+                   " is not a 32-bit value");
+  return static_cast<std::uint32_t>(static_cast<std::int64_t>(v));
 }
 
 detail::RawCloud read_ascii(const Header& h, std::string_view data, const path& file) {

@@ -231,12 +231,16 @@ RunDirectory open_run_directory(const std::filesystem::path& root) {
   run.root = root;
   const nlohmann::json meta = read_json(root / "run.json");
   try {
-    const int version = meta.at("format_version").get<int>();
+    const nlohmann::json& v = meta.at("format_version");
+    if (!v.is_number_integer()) throw InputError((root / "run.json").string() + ": format_version must be an integer");
+    const auto version = v.get<std::int64_t>();
     if (version != kRunFormatVersion) {
       throw InputError((root / "run.json").string() + ": format_version " + std::to_string(version) +
                        " (this build reads " + std::to_string(kRunFormatVersion) + ")");
     }
     run.scenario = meta.value("scenario", "");
+    if (meta.contains("seed") && !meta["seed"].is_number_unsigned())  // a double would be cast (UB)
+      throw InputError((root / "run.json").string() + ": seed must be a non-negative integer");
     run.seed = meta.value("seed", std::uint64_t{0});
     run.duration = meta.value("duration", 0.0);
   } catch (const nlohmann::json::exception& e) {
