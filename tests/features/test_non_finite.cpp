@@ -51,6 +51,11 @@ TEST(NonFinite, KdTreeNeverFindsThemAndANanQueryFindsNothing) {
     clean.radius(d.clean[i], 0.05f, a, true);
     dirty.radius(d.clean[i], 0.05f, b, true);
     ASSERT_EQ(a.size(), b.size());
+    std::vector<std::uint32_t> ia, ib = b.indices;  // the same points, as indices of each cloud
+    for (std::uint32_t j : a.indices) ia.push_back(d.index[j]);
+    std::sort(ia.begin(), ia.end());
+    std::sort(ib.begin(), ib.end());
+    EXPECT_EQ(ia, ib);
     for (std::size_t k = 0; k < a.size(); ++k) EXPECT_EQ(a.sq_dists[k], b.sq_dists[k]);
     float d2 = -1.0f;
     EXPECT_EQ(dirty.nearest(d.clean[i] + Vec3f(0.001f, 0, 0), &d2), d.index[clean.nearest(d.clean[i] + Vec3f(0.001f, 0, 0))]);

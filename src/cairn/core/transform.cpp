@@ -51,6 +51,7 @@ Eigen::Isometry3d rigid_from_matrix(const Eigen::Matrix4d& m, const std::string&
   }
   Eigen::Isometry3d T;
   T.matrix() = m;
+  T.makeAffine();  // the last row exactly 0 0 0 1
   return T;
 }
 

@@ -43,15 +43,17 @@ VoxelPartition voxelize(std::span<const Vec3f> points, double leaf) {
   if (!(leaf > 0.0)) throw ConfigError("voxel grid: leaf size must be > 0, got " + std::to_string(leaf));
   VoxelPartition part;
   const float inv_leaf = 1.0f / float(leaf);
+  if (!std::isfinite(inv_leaf)) throw ConfigError("voxel grid: leaf size " + std::to_string(leaf) + " m is too small");
   const Aabb box = finite_bounds(points);
   if (!(box.min.array() <= box.max.array()).all()) return part;  // no finite point
-  // Checked in double before any cast to int (a cast out of range is undefined behaviour).
-  const Eigen::Array3d lo_d = (box.min.cast<double>() * double(inv_leaf)).array().floor();
-  const Eigen::Array3d hi_d = (box.max.cast<double>() * double(inv_leaf)).array().floor();
-  for (int a = 0; a < 3; ++a)
-    if (hi_d[a] - lo_d[a] + 1 >= double(kMaxCells) || std::abs(lo_d[a]) > kMaxIndex || std::abs(hi_d[a]) > kMaxIndex)
+  // The floors the keys use (float, monotonic in p: every point's lies between these two),
+  // checked before any cast to int (a cast out of range is undefined behaviour).
+  for (int a = 0; a < 3; ++a) {
+    const double lo = std::floor(box.min[a] * inv_leaf), hi = std::floor(box.max[a] * inv_leaf);
+    if (!(hi - lo + 1 < double(kMaxCells) && std::abs(lo) <= kMaxIndex && std::abs(hi) <= kMaxIndex))
       throw ConfigError("voxel grid: leaf size " + std::to_string(leaf) +
                         " m is too small for the cloud extent (more than 2^21 voxels per axis)");
+  }
   const Eigen::Array3i lo = cell_of(box.min, inv_leaf);
 
   constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();  // above every 63-bit key

@@ -486,7 +486,8 @@ void Experiment::capture_after(int round, int move, int moves) {
 /// The next stone off the pile (objects/support.hpp, the machine's view): among the tracked
 /// objects not yet picked and not lost, one no object rests on; nullptr when none is left.
 Tracker::Tracked* Experiment::next_off_pile(const std::set<std::int64_t>& picked, int& loaded) {
-  const std::vector<ObjectRecord> objects = tracker_.db().objects();  // not lost
+  std::vector<ObjectRecord> objects = tracker_.db().objects();
+  std::erase_if(objects, [](const ObjectRecord& o) { return o.status == ObjectStatus::lost; });
   std::vector<std::size_t> candidates;
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const bool tracked = std::any_of(tracker_.tracked().begin(), tracker_.tracked().end(),
@@ -502,6 +503,19 @@ Tracker::Tracked* Experiment::next_off_pile(const std::set<std::int64_t>& picked
   return nullptr;
 }
 
+/// A pile's re-segmentations as one round's record: the objects created, vanished and bumped by
+/// each, the database's state (objects, matched) after the last.
+void add_resegmentation(RoundRecord& round, const RoundRecord& pass) {
+  round.new_objects += pass.new_objects;
+  round.new_on_tracked += pass.new_on_tracked;
+  round.new_on_untracked += pass.new_on_untracked;
+  round.new_on_terrain += pass.new_on_terrain;
+  round.vanished += pass.vanished;
+  round.moved_unexpectedly += pass.moved_unexpectedly;
+  round.matched = pass.matched;
+  round.objects = pass.objects;
+}
+
 /// Clears the pile into the row (issue #21): re-segments after every move, so a stone that came
 /// out merged with a neighbour becomes an object once the neighbour is gone, and picks next a
 /// stone no other object rests on.
@@ -510,10 +524,12 @@ void Experiment::clear_pile() {
   targets_.clear();
   std::set<std::int64_t> picked;
   const int stones = out.stones;
+  RoundRecord round{.round = 1};  // every re-segmentation's new, vanished and bumped objects; the last's state
   for (int move = 1;; ++move) {
     if (move > 1) {
       RoundRecord rr{.round = 1};
       tracker_.resegment(rr);
+      add_resegmentation(round, rr);
       tracker_.adopt_new_objects();
       ++out.resegmentations;
     }
@@ -527,9 +543,11 @@ void Experiment::clear_pile() {
     for (std::size_t g = first; g < out.grasps.size(); ++g) out.grasps[g].others_loaded = loaded;
     capture_after(1, move, stones);
   }
-  RoundRecord rr{.round = 1};
-  tracker_.resegment(rr);
-  score_round(1, rr);
+  if (out.resegmentations == 0) {  // nothing was picked: the one re-segmentation of the round
+    tracker_.resegment(round);
+    ++out.resegmentations;
+  }
+  score_round(1, round);
   out.stones_tracked = int(tracker_.tracked().size());  // with the stones adopted on the way
 }
 

@@ -227,7 +227,7 @@ struct ExperimentResult {
   int placed = 0;                // ... whose stone ended within target_tolerance of its target (truth)
   int first_attempt_success = 0, within_attempts = 0;  // truth: the stone held and ended at its target
   int failures = 0, failures_detected = 0, false_alarms = 0;  // per attempt, truth vs detection
-  int pile_shifts = 0;           // attempts after which a stone left on the site moved > pile_shift
+  int pile_shifts = 0;           // attempts during which a stone not yet moved (another) moved > pile_shift
   int resegmentations = 0;       // pile: the map re-segmented after each move
   ExperimentScene scene;  // for the report (not in the JSON)
 };

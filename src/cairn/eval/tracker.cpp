@@ -312,11 +312,14 @@ int Tracker::adopt_new_objects() {
   const auto is_tracked = [&](auto pred) { return std::any_of(tracked_.begin(), tracked_.end(), pred); };
   std::map<int, std::vector<Tracked>> on_stone;  // untracked objects per stone
   for (const ObjectRecord& r : db_->objects()) {
-    if (is_tracked([&](const Tracked& x) { return x.object == r.id; })) continue;
+    if (r.status == ObjectStatus::lost || is_tracked([&](const Tracked& x) { return x.object == r.id; })) continue;
     double purity = 0.0;
     const int k = stone_of(r.cloud, *t, E, &purity);
     if (k < 0 || is_tracked([&](const Tracked& x) { return x.stone == k; })) continue;
-    on_stone[k].push_back({.stone = k, .object = r.id, .created_centroid = r.centroid, .E0 = E,
+    // Scored from now on (score: the stored motion since creation A against the truth's): as if
+    // created where A takes it back to, the truth's motion since then equal to A.
+    const Isometry3d A = db_motion(db_->history(r.id));
+    on_stone[k].push_back({.stone = k, .object = r.id, .created_centroid = A.inverse() * r.centroid, .E0 = E * A,
                            .M = Isometry3d::Identity(), .purity = purity});
   }
   int adopted = 0;

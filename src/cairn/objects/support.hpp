@@ -30,8 +30,9 @@ struct Contact {
 [[nodiscard]] std::vector<int> loads(std::size_t n, std::span<const Contact> contacts);
 
 /// The index of the object to pick next among `candidates` (indices into `objects`): one that no
-/// other object of `objects` rests on, the largest (most points, Sec. 5.1) of those; when every
-/// candidate carries another (a cycle of leaning stones), the one with the highest centroid.
+/// other object of `objects` rests on, the largest (most points, Sec. 5.1) of those. The relation
+/// follows the centroids' heights, so the highest object always is free; when every candidate
+/// carries another (the free ones are no candidates), the candidate with the highest centroid.
 /// `candidates` must not be empty.
 [[nodiscard]] std::size_t next_to_pick(std::span<const ObjectRecord> objects, std::span<const std::size_t> candidates,
                                        const SupportConfig& c);

@@ -151,6 +151,10 @@ struct Field {
   [[nodiscard]] bool packed_color() const { return (name == "rgb" || name == "rgba") && size == 4; }
 };
 
+constexpr std::size_t kMaxFieldCount = std::size_t{1} << 20;  // elements per field (histograms: hundreds)
+/// binary_compressed (LZF) expands at most ~100× in practice; a header claiming more data is corrupt.
+constexpr std::size_t kMaxCompression = 1024;
+
 struct Header {
   std::vector<Field> fields;
   std::size_t points = 0;
@@ -220,6 +224,9 @@ std::vector<Field> make_fields(const HeaderWords& w, const path& file) {
     if (!w.sizes.empty()) f.size = to_size(w.sizes, i, file);
     if (!w.types.empty()) f.kind = w.types[i].size() == 1 ? w.types[i][0] : '?';
     if (!w.counts.empty()) f.count = to_size(w.counts, i, file);
+    if (f.count < 1 || f.count > kMaxFieldCount)
+      fail(file, "PCD field '" + f.name + "' has COUNT " + std::to_string(f.count) + " (1 to " +
+                     std::to_string(kMaxFieldCount) + ")");
     f.type = scalar_of(f.kind, f.size, file);
     names.push_back(f.name);
   }
@@ -268,7 +275,13 @@ Header parse_header(std::string_view bytes, const path& file) {
   }
   h.data_offset = pos;
   h.fields = make_fields(w, file);
-  h.points = points ? *points : width.value_or(0) * height.value_or(1);
+  std::size_t size = 0;  // points × record bytes must fit (a wrapped product would pass the size checks)
+  if (!points && __builtin_mul_overflow(width.value_or(0), height.value_or(1), &h.points))
+    fail(file, "PCD WIDTH × HEIGHT overflows");
+  if (points) h.points = *points;
+  if (__builtin_mul_overflow(h.points, h.record_size(), &size) || size > bytes.size() * kMaxCompression)
+    fail(file, std::to_string(h.points) + " points of " + std::to_string(h.record_size()) +
+                   " bytes cannot be in a file of " + std::to_string(bytes.size()) + " bytes");
   return h;
 }
 

@@ -128,6 +128,8 @@ Header parse_header(std::string_view bytes, const path& file) {
     parse_header_line(line, h, file);
   }
   if (!h.encoding) fail(file, "PLY header has no format line");
+  for (const auto& e : h.elements)  // records of no bytes: a count nothing in the file can bound
+    if (e.props.empty() && e.count > 0) fail(file, "PLY element '" + e.name + "' has no properties");
   h.data_offset = pos;
   return h;
 }

@@ -276,6 +276,8 @@ RawCloud read_npy(std::string_view bytes, const path& file) {
   if (shape.size() != 2 || shape[1] < kMinColumns)
     fail(file, "NumPy array must have shape (N, C) with C >= 3");
   const auto [n, columns] = std::pair{shape[0], shape[1]};
+  if (n == 0) fail(file, "cloud is empty (0 points)");
+  if (columns > bytes.size()) fail(file, "NumPy shape has more columns than the file has bytes");
   const auto record = columns * scalar_size(type);
   const auto available = (bytes.size() - data_start) / record;
   if (available < n) fail_truncated(file, n, available);
