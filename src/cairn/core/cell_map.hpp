@@ -1,6 +1,9 @@
 #pragma once
-// A flat open-addressing hash map from integer 3-D cell coordinates to a 32-bit value — the
-// voxel hash behind neighbour searches that scan the cells around a point.
+// The one voxel hash of cairn: a flat open-addressing hash map (linear probing, power-of-two
+// capacity, at most half full — it grows by rehashing) from packed integer 3-D cell coordinates
+// to a 32-bit value. Behind the neighbour searches that scan the cells around a point
+// (clustering, splitting, columns), the local map's voxel index, the drone's fusion cells and the
+// levelling's sign cells.
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -11,16 +14,10 @@ class CellMap {
  public:
   static constexpr std::uint32_t kAbsent = std::numeric_limits<std::uint32_t>::max();
 
-  /// Capacity for `expected` entries at a load factor of at most 1/2.
-  explicit CellMap(std::size_t expected) {
-    std::size_t cap = 16;
-    while (cap < 2 * expected) cap *= 2;
-    keys_.assign(cap, kEmpty);
-    values_.assign(cap, kAbsent);
-    mask_ = cap - 1;
-  }
+  /// Capacity for `expected` entries at a load factor of at most 1/2 (more entries grow it).
+  explicit CellMap(std::size_t expected = 0) { allocate(expected); }
 
-  /// Packs cell coordinates (each within ±2^20) into one key.
+  /// Packs cell coordinates (each within ±2^20) into one key (never the empty slot's).
   static std::uint64_t key(std::int64_t x, std::int64_t y, std::int64_t z) {
     constexpr std::int64_t kBias = std::int64_t{1} << 20;
     constexpr std::uint64_t kMask = (std::uint64_t{1} << 21) - 1;
@@ -28,16 +25,16 @@ class CellMap {
            (std::uint64_t(x + kBias) & kMask);
   }
 
-  /// Inserts key → value unless present; returns the stored value.
+  /// Inserts key → value unless present; returns the stored value (== value: it was new).
   std::uint32_t insert(std::uint64_t k, std::uint32_t value) {
-    for (std::size_t s = slot(k);; s = (s + 1) & mask_) {
+    if (2 * (size_ + 1) > keys_.size()) grow();
+    std::size_t s = slot(k);
+    for (; keys_[s] != kEmpty; s = (s + 1) & mask_)
       if (keys_[s] == k) return values_[s];
-      if (keys_[s] == kEmpty) {
-        keys_[s] = k;
-        values_[s] = value;
-        return value;
-      }
-    }
+    keys_[s] = k;
+    values_[s] = value;
+    ++size_;
+    return value;
   }
 
   [[nodiscard]] std::uint32_t find(std::uint64_t k) const {
@@ -47,8 +44,32 @@ class CellMap {
     }
   }
 
+  [[nodiscard]] std::size_t size() const { return size_; }
+
+  /// Empty, with capacity for `expected` entries.
+  void clear(std::size_t expected = 0) { allocate(expected); }
+
  private:
   static constexpr std::uint64_t kEmpty = std::numeric_limits<std::uint64_t>::max();
+  static constexpr std::size_t kMinCapacity = 16;
+
+  void allocate(std::size_t expected) {
+    std::size_t cap = kMinCapacity;
+    while (cap < 2 * expected) cap *= 2;
+    keys_.assign(cap, kEmpty);
+    values_.assign(cap, kAbsent);
+    mask_ = cap - 1;
+    size_ = 0;
+  }
+
+  void grow() {
+    std::vector<std::uint64_t> keys = std::move(keys_);
+    std::vector<std::uint32_t> values = std::move(values_);
+    allocate(keys.size());  // twice the entries the old capacity held
+    for (std::size_t i = 0; i < keys.size(); ++i)
+      if (keys[i] != kEmpty) insert(keys[i], values[i]);
+  }
+
   [[nodiscard]] std::size_t slot(std::uint64_t k) const {
     k ^= k >> 33;  // splitmix-style finaliser
     k *= 0xff51afd7ed558ccdull;
@@ -58,6 +79,7 @@ class CellMap {
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> values_;
   std::size_t mask_ = 0;
+  std::size_t size_ = 0;
 };
 
 }  // namespace cairn

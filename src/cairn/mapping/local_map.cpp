@@ -24,31 +24,9 @@ std::uint64_t LocalMap::key_of(const Eigen::Vector3d& p) const {
                       std::int64_t(std::floor(p.z() / r)));
 }
 
-namespace {
-constexpr std::uint64_t kEmptyKey = ~std::uint64_t{0};  // never produced by CellMap::key
-constexpr std::size_t kMinIndexSize = 1024;
-std::size_t slot_of(std::uint64_t key, std::size_t mask) {
-  key ^= key >> 31;  // splitmix64 finaliser
-  key *= 0x7fb5d329728ea185ULL;
-  key ^= key >> 27;
-  key *= 0x81dadef4bc2dd44dULL;
-  key ^= key >> 33;
-  return std::size_t(key) & mask;
-}
-}  // namespace
-
-void LocalMap::rebuild_index(std::size_t capacity) {
-  std::size_t size = kMinIndexSize;
-  while (size < 2 * capacity) size *= 2;
-  index_keys_.assign(size, kEmptyKey);
-  index_pos_.assign(size, 0);
-  const std::size_t mask = size - 1;
-  for (std::size_t i = 0; i < voxels_.size(); ++i) {
-    std::size_t s = slot_of(voxels_[i].key, mask);
-    while (index_keys_[s] != kEmptyKey) s = (s + 1) & mask;
-    index_keys_[s] = voxels_[i].key;
-    index_pos_[s] = std::uint32_t(i);
-  }
+void LocalMap::rebuild_index() {
+  index_.clear(voxels_.size());
+  for (std::size_t i = 0; i < voxels_.size(); ++i) index_.insert(voxels_[i].key, std::uint32_t(i));
 }
 
 void LocalMap::add(const Eigen::Vector3d& p_world) {
@@ -59,16 +37,10 @@ void LocalMap::add(const Eigen::Vector3d& p_world) {
   }
   const Eigen::Vector3d p = p_world - origin_;
   const std::uint64_t key = key_of(p);
-  if (2 * (voxels_.size() + 1) > index_keys_.size()) rebuild_index(2 * (voxels_.size() + 1));
-  const std::size_t mask = index_keys_.size() - 1;
-  std::size_t s = slot_of(key, mask);
-  while (index_keys_[s] != key && index_keys_[s] != kEmptyKey) s = (s + 1) & mask;
-  if (index_keys_[s] == kEmptyKey) {
-    index_keys_[s] = key;
-    index_pos_[s] = std::uint32_t(voxels_.size());
-    voxels_.push_back({.sum = Eigen::Vector3d::Zero(), .count = 0, .key = key});
-  }
-  Voxel& v = voxels_[index_pos_[s]];
+  const auto next = std::uint32_t(voxels_.size());
+  const std::uint32_t at = index_.insert(key, next);
+  if (at == next) voxels_.push_back({.sum = Eigen::Vector3d::Zero(), .count = 0, .key = key});
+  Voxel& v = voxels_[at];
   v.sum += p;
   ++v.count;
   ++revision_;
@@ -87,7 +59,7 @@ std::size_t LocalMap::filter(Keep keep) {
   const std::size_t before = voxels_.size();
   std::erase_if(voxels_, [&](const Voxel& v) { return !keep(Eigen::Vector3d(origin_ + v.sum / v.count)); });
   if (voxels_.size() != before) {
-    rebuild_index(voxels_.size());
+    rebuild_index();
     ++revision_;
   }
   return before - voxels_.size();
@@ -115,8 +87,7 @@ std::size_t LocalMap::apply(const MapEdit& edit) {
 void LocalMap::clear() {
   ++revision_;
   voxels_.clear();
-  index_keys_.clear();
-  index_pos_.clear();
+  index_.clear();
 }
 
 PointCloud LocalMap::snapshot() const {

@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "cairn/core/cell_map.hpp"
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/mapping/config.hpp"
 #include "cairn/mapping/map_edit.hpp"
@@ -62,7 +63,7 @@ class LocalMap {
   /// Keeps the voxels for which keep(centroid_world) holds; returns how many were dropped.
   template <class Keep>
   std::size_t filter(Keep keep);
-  void rebuild_index(std::size_t capacity);
+  void rebuild_index();
   [[nodiscard]] PointCloud compute_snapshot() const;
 
   /// The last snapshot and the map revision it was taken at (smoothing is the expensive part of
@@ -93,11 +94,10 @@ class LocalMap {
   mutable SnapshotCache cache_;
   bool has_origin_ = false;
   Vec3d origin_ = Vec3d::Zero();
-  // Voxels stored densely; an open-addressing index (linear probing, power-of-two size, at most
-  // half full) maps a key to its position. Erasing (crop, remove_sphere) compacts and re-indexes.
+  // Voxels stored densely; the voxel hash (core/cell_map.hpp) maps a key to its position.
+  // Erasing (crop, remove_sphere) compacts and re-indexes.
   std::vector<Voxel> voxels_;
-  std::vector<std::uint64_t> index_keys_;
-  std::vector<std::uint32_t> index_pos_;
+  CellMap index_;
 };
 
 }  // namespace cairn

@@ -11,8 +11,8 @@
 #include <numeric>
 #include <optional>
 #include <random>
-#include <unordered_map>
 
+#include "cairn/core/cell_map.hpp"
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/plane.hpp"
@@ -427,14 +427,18 @@ std::optional<Vec3d> ground_normal(std::span<const Vec3f> points, const Levellin
   // that curves away from the plane.
   const Vec3d u = n.unitOrthogonal(), v = n.cross(u);
   const double cell = cfg.sign_cell;
-  std::unordered_map<std::uint64_t, std::vector<float>> cells;
+  CellMap index;  // plane cell -> position in `cells`
+  std::vector<std::vector<float>> cells;
   for (const Vec3f& p : points) {
     const Vec3d q = p.cast<double>();
     const auto cx = std::int64_t(std::floor(u.dot(q) / cell)), cy = std::int64_t(std::floor(v.dot(q) / cell));
-    cells[(std::uint64_t(cx) << 32) ^ std::uint64_t(std::uint32_t(cy))].push_back(plane.signed_distance(p));
+    const auto next = std::uint32_t(cells.size());
+    const std::uint32_t at = index.insert(CellMap::key(cx, cy, 0), next);
+    if (at == next) cells.emplace_back();
+    cells[at].push_back(plane.signed_distance(p));
   }
   int up = 0, down = 0;
-  for (auto& [key, h] : cells) {
+  for (std::vector<float>& h : cells) {
     if (h.size() < cfg.sign_min_points) continue;
     const auto at = [&](double q) {
       auto it = h.begin() + std::ptrdiff_t(q * double(h.size() - 1));

@@ -168,24 +168,6 @@ struct CameraView {
   Eigen::Vector3f center;
 };
 
-class CellIndex {
- public:
-  explicit CellIndex(std::size_t expected) : map_(expected), capacity_(expected) {}
-  /// True if the cell is new (then remembered).
-  bool insert(std::uint64_t key, std::uint32_t value, const std::vector<Sample>& samples) {
-    if (samples.size() >= capacity_) {  // grow: rebuild at twice the capacity
-      capacity_ *= 2;
-      map_ = CellMap(capacity_);
-      for (std::uint32_t i = 0; i < samples.size(); ++i) map_.insert(samples[i].key, i);
-    }
-    return map_.insert(key, value) == value;
-  }
-
- private:
-  CellMap map_;
-  std::size_t capacity_;
-};
-
 std::vector<Sample> cast_images(const RayScene& scene, const std::vector<CameraView>& views, const DroneConfig& c) {
   const auto& k = c.camera;
   const int nu = (k.width + c.pixel_stride - 1) / c.pixel_stride;
@@ -195,7 +177,7 @@ std::vector<Sample> cast_images(const RayScene& scene, const std::vector<CameraV
   const float cos_max = static_cast<float>(std::cos(c.max_incidence));
   const double inv_cell = 1.0 / (kCellPerSpacing * c.point_spacing);
   const double area = (2 * half_x) * (2 * half_y);
-  CellIndex cells(static_cast<std::size_t>(2.0 * area * inv_cell * inv_cell) + 1024);
+  CellMap cells(static_cast<std::size_t>(2.0 * area * inv_cell * inv_cell) + 1024);
 
   std::vector<Sample> samples;
   std::vector<Ray> rays(n_rays);
@@ -221,7 +203,7 @@ std::vector<Sample> cast_images(const RayScene& scene, const std::vector<CameraV
                                              static_cast<std::int64_t>(std::floor(p.y() * inv_cell)),
                                              static_cast<std::int64_t>(std::floor(p.z() * inv_cell)));
       const auto index = static_cast<std::uint32_t>(samples.size());
-      if (cells.insert(key, index, samples)) samples.push_back({p, h.normal, h.label, cam, key});
+      if (cells.insert(key, index) == index) samples.push_back({p, h.normal, h.label, cam, key});
     }
   }
   return samples;
