@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <unistd.h>
 
 #include <cstdio>
@@ -167,15 +169,21 @@ TEST(Experiment, PileIsClearedOneStoneAtATimeReSegmentingAfterEveryMove) {
 #endif
   const ExperimentResult r = run_experiment(c);
   std::filesystem::remove(c.tracking.database);
+  for (const std::string& n : r.notes) std::printf("note: %s\n", n.c_str());
   const int stones = c.tracking.simulation.site.stones.count;
   EXPECT_EQ(r.stones, stones);
   EXPECT_GE(r.stones_tracked, stones - 1);  // at most one pair still merged at the end
   ASSERT_EQ(r.rounds.size(), 1u);
-  // Every tracked stone picked once (one attempt each), the map re-segmented before each next
-  // pick and once more to see that nothing is left.
-  EXPECT_EQ(r.moves, r.stones_tracked);
+  // Every tracked stone picked once (one attempt each) unless the machine reports why not (no
+  // free place in the row for it, or lost), the map re-segmented before each next pick and once
+  // more to see that nothing is left.
+  const auto skipped = int(std::count_if(r.notes.begin(), r.notes.end(), [](const std::string& n) {
+    return n.find("no free place") != std::string::npos || n.find("is lost") != std::string::npos;
+  }));
+  EXPECT_LE(skipped, 1);
+  EXPECT_EQ(r.moves + skipped, r.stones_tracked);
   EXPECT_EQ(int(r.grasps.size()), r.moves);
-  EXPECT_EQ(r.resegmentations, r.moves);
+  EXPECT_EQ(r.resegmentations, r.moves + skipped);
   std::set<int> picked;
   int shifts = 0;
   for (const GraspRecord& g : r.grasps) {

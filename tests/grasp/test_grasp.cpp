@@ -119,6 +119,18 @@ TEST(ForceClosure, ClosingOnTheGroundIsACollisionAndAnEmptyGripIsEmpty) {
   EXPECT_EQ(close_jaws(g, max_jaw_angle(g), {}, {}, {}, 0.05).failure, "empty");
 }
 
+TEST(ForceClosure, TheTipsKeepTheirClearanceFromTheGround) {
+  const GripperConfig g;
+  const BoxInGripper box;
+  // 3 cm beyond the arc the left tip sweeps, straight ahead of its pivot (y = -hinge_spacing / 2):
+  // clear without a clearance and with 2 cm, hit with 5 cm.
+  const std::vector<Vector3d> beyond_tip{{g.jaw_length + 0.03, -0.5 * g.hinge_spacing, 0.0}};
+  EXPECT_TRUE(close_jaws(g, max_jaw_angle(g), box.points, box.normals, beyond_tip, 0.05, 0.0).closed);
+  EXPECT_EQ(close_jaws(g, max_jaw_angle(g), box.points, box.normals, beyond_tip, 0.05, 0.05).failure,
+            "collision_close");
+  EXPECT_TRUE(close_jaws(g, max_jaw_angle(g), box.points, box.normals, beyond_tip, 0.05, 0.02).closed);
+}
+
 TEST(Ranking, AlignmentThenEnclosingThenDistance) {
   const std::vector<Costs> costs{{0.10, 0.5, 0.30}, {0.20, 0.2, 0.10}, {0.90, 0.1, 0.00}, {0.15, 0.3, 0.05}};
   const RankingConfig rc{.keep_align = 3, .keep_enclose = 2, .output = 10};

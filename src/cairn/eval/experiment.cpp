@@ -440,7 +440,10 @@ void Experiment::move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& 
   }
   const std::optional<Vec2d> target = free_target(round, *tracker_.db().object(tr.object), used);
   if (!target) {
-    out.notes.push_back(name + ": no free place in the row");
+    char extent[96];
+    std::snprintf(extent, sizeof extent, " (the object is %.2f m across)",
+                  xy_bounds(tracker_.db().object(tr.object)->cloud).diagonal().norm());
+    out.notes.push_back(name + ": no free place in the row" + extent);
     return;
   }
   targets_[tr.stone] = *target;

@@ -58,11 +58,6 @@ double part_reach(const std::vector<ConvexPart>& parts) {
   return r;
 }
 
-/// In front of the palm, within the jaws' length and height: where a jaw can touch.
-bool in_jaw_range(const GripperConfig& g, const Vector3d& q) {
-  return q.x() > 0.0 && q.x() <= g.jaw_length && std::abs(q.z()) <= 0.5 * g.jaw_height;
-}
-
 std::vector<std::uint32_t> choose_samples(const PointCloud& cloud, int n, unsigned seed) {
   std::vector<std::uint32_t> object;
   for (std::size_t i = 0; i < cloud.size(); ++i)
@@ -151,7 +146,7 @@ double fitted_opening(const SampleNeighbourhood& n, const Eigen::Matrix3f& Rt, c
 void close_with_backoff(const SampleContext& ctx, const Isometry3d& T, double opening,
                         double pushed, std::vector<Candidate>& out, CandidateCounts& counts) {
   const CandidateConfig& cc = ctx.config.candidates;
-  const double voxel = ctx.config.cloud.voxel;
+  const double voxel = ctx.config.cloud.voxel, clearance = cc.tip_clearance_voxels * voxel;
   const double open_angle = jaw_angle_for(ctx.gripper, opening);
   const JawLines open = jaw_lines(ctx.gripper, open_angle);
   bool hypothesis = false;
@@ -162,13 +157,13 @@ void close_with_backoff(const SampleContext& ctx, const Isometry3d& T, double op
     Neighbors fine;
     LocalPoints local;
     ctx.tree.radius(closing_centre(ctx.gripper, Tb).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
-    gather_local(ctx.pc.cloud, fine.indices, Tb, ctx.gripper, local);
+    gather_local(ctx.pc.cloud, fine.indices, Tb, ctx.gripper, local, clearance);
     const auto in_region = std::count_if(local.object.begin(), local.object.end(),
                                          [&](const Vector3d& q) { return open.encloses(q); });
     if (std::size_t(in_region) < cc.min_object_points) break;
     hypothesis = true;
     Closing closing = close_jaws(ctx.gripper, open_angle, local.object, local.normals, local.environment,
-                                 ctx.config.force_closure.patch_voxels * voxel);
+                                 ctx.config.force_closure.patch_voxels * voxel, clearance);
     if (closing.failure == "collision_close") continue;
     if (closing.closed) {
       ++counts.collision_free;
@@ -305,7 +300,7 @@ std::optional<double> advance_to_contact(const std::vector<SweptBox>& boxes, std
 }
 
 void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Isometry3d& T,
-                  const GripperConfig& g, LocalPoints& out) {
+                  const GripperConfig& g, LocalPoints& out, double clearance) {
   out.object.clear();
   out.normals.clear();
   out.environment.clear();
@@ -317,8 +312,9 @@ void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indice
     const Vec3f d = cloud.points[i] - o;
     if (std::abs(Rf.row(2).dot(d)) > half) continue;  // cheap rejection first
     const Vector3d q = (Rf * d).cast<double>();
-    if (!in_jaw_range(g, q)) continue;
-    if (cloud.labels[i] == kObject) {
+    const bool object = cloud.labels[i] == kObject;
+    if (q.x() <= 0.0 || q.x() > g.jaw_length + (object ? 0.0 : clearance)) continue;
+    if (object) {
       out.object.push_back(q);
       out.normals.push_back(Rt * cloud.normals[i].cast<double>());
     } else {
@@ -343,15 +339,17 @@ std::pair<double, double> shift_bounds(const JawLines& j, std::span<const Vector
   return {dL, dR};
 }
 
-/// Does a jaw sweep through a non-object point between the two angles?
-bool sweeps_environment(const GripperConfig& g, std::span<const Vector3d> env, double from, double to) {
+/// Does a jaw sweep through (or within `clearance` of) a non-object point between the two angles?
+bool sweeps_environment(const GripperConfig& g, std::span<const Vector3d> env, double from, double to,
+                        double clearance) {
   const double h = 0.5 * g.hinge_spacing;
   for (const Vector3d& q : env) {
     for (const double side : {-1.0, 1.0}) {
       const double dy = side * (q.y() - side * h);  // outwards from the hinge
-      if (std::hypot(q.x(), dy) > g.jaw_length) continue;
+      const double r = std::hypot(q.x(), dy);
+      if (r > g.jaw_length + clearance) continue;
       const double phi = std::atan2(dy, q.x());
-      if (phi >= to && phi <= from) return true;
+      if (phi >= to - clearance / std::max(r, clearance) && phi <= from) return true;
     }
   }
   return false;
@@ -393,7 +391,7 @@ void contact_patch(const JawLines& j, std::span<const Vector3d> obj, std::span<c
 }  // namespace
 
 Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Vector3d> obj,
-                   std::span<const Vector3d> normals, std::span<const Vector3d> env, double patch) {
+                   std::span<const Vector3d> normals, std::span<const Vector3d> env, double patch, double clearance) {
   const JawLines open = jaw_lines(g, open_angle);
   Closing c;
   std::vector<std::size_t> rel;  // object points between the open jaws
@@ -417,7 +415,7 @@ Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Ve
     (feasible(mid) ? hi : lo) = mid;
   }
   c.angle = hi;
-  if (sweeps_environment(g, env, open_angle, c.angle)) {
+  if (sweeps_environment(g, env, open_angle, c.angle, clearance)) {
     c.failure = "collision_close";
     return c;
   }

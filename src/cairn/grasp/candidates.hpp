@@ -62,9 +62,11 @@ struct Closing {
   std::array<Eigen::Vector3d, 2> normals{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};  // mean outward surface normals of the patches (G; 0 if none)
   std::array<int, 2> patch_points{0, 0};
 };
+/// `clearance`: environment points closer than this to the jaws' swept area (beyond the tips,
+/// inside the final faces) count as hit (the ground plane and the map are only this certain).
 [[nodiscard]] Closing close_jaws(const GripperConfig& gripper, double open_angle,
                                  std::span<const Eigen::Vector3d> object_G, std::span<const Eigen::Vector3d> normals_G,
-                                 std::span<const Eigen::Vector3d> environment_G, double patch);
+                                 std::span<const Eigen::Vector3d> environment_G, double patch, double clearance = 0.0);
 
 /// One collision-checked grasp pose.
 struct Candidate {
@@ -84,9 +86,10 @@ struct LocalPoints {
   std::vector<Eigen::Vector3d> object, normals, environment;
 };
 /// Points of `cloud` among `indices` transformed into G (T: G in the cloud's frame), kept when
-/// they lie within the jaws' height (|z| <= jaw_height/2 + margin) in front of the palm.
+/// they lie within the jaws' height (|z| <= jaw_height/2) in front of the palm, up to the jaws'
+/// length (the environment's up to `clearance` beyond it).
 void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Eigen::Isometry3d& T,
-                  const GripperConfig& gripper, LocalPoints& out);
+                  const GripperConfig& gripper, LocalPoints& out, double clearance = 0.0);
 
 /// Samples, rotates, pushes and closes (Sec. 5.3); `tree` indexes pc.cloud.points. Returns the
 /// collision-free candidates in (sample, rotation) order; deterministic for the config's seed.

@@ -40,6 +40,8 @@ void validate(const CandidateConfig& c) {
   require(c.padding_voxels >= 0, "candidates.padding_voxels", "must be >= 0");
   require(c.clearance_voxels >= 0, "candidates.clearance_voxels", "must be >= 0");
   require(c.start_margin_voxels > c.clearance_voxels, "candidates.start_margin_voxels", "must exceed clearance_voxels");
+  require(std::isfinite(c.tip_clearance_voxels) && c.tip_clearance_voxels >= 0.0, "candidates.tip_clearance_voxels",
+          "must be >= 0");
   require(c.min_object_points >= 1, "candidates.min_object_points", "must be >= 1");
 }
 

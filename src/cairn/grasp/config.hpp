@@ -74,6 +74,10 @@ struct CandidateConfig {
   /// environment (the tips into the ground under a flat stone), in voxels (0: the pushed pose
   /// itself); none goes behind the push's start.
   std::vector<double> backoff_voxels = {0.0, 2.0, 4.0, 6.0};
+  /// The closing jaws keep this many voxels from every non-object point (the tips from the
+  /// ground: the RANSAC plane is only d_plane certain; the centred baseline keeps 5 cm from the
+  /// true terrain).
+  double tip_clearance_voxels = 1.0;
   unsigned seed = 1;                  // sampling of the N points
   template <class V>
   void visit(V& v) {
@@ -91,6 +95,7 @@ struct CandidateConfig {
     v("clearance_voxels", clearance_voxels, "back-off after the first contact in voxels");
     v("padding_voxels", padding_voxels, "the gripper's boxes grown across the approach by this many voxels for the push");
     v("start_margin_voxels", start_margin_voxels, "the push starts this many voxels before the sample");
+    v("tip_clearance_voxels", tip_clearance_voxels, "the closing jaws keep this far from non-object points [voxels]");
     v("min_object_points", min_object_points, "object points needed in the closing region");
     v("seed", seed, "seed of the sample selection");
   }
