@@ -5,8 +5,8 @@
 #include <limits>
 #include <numbers>
 #include <random>
-#include <unordered_map>
 
+#include "cairn/core/cell_map.hpp"
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
 #include "cairn/core/normals.hpp"
@@ -127,20 +127,21 @@ std::size_t fill_ground(PointCloud& cloud, const Plane& plane, double voxel) {
 }
 
 Vec3d solid_centroid(const PointCloud& cloud, const Plane& plane, double voxel) {
-  std::unordered_map<std::int64_t, std::pair<Vec3d, double>> top;  // cell -> (highest point, its z)
-  constexpr std::int64_t kStride = 1 << 21;
+  CellMap index;  // column cell -> position in `top`
+  std::vector<Vec3d> top;  // per column: its highest object point
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     if (cloud.labels[i] != kObject) continue;
     const Vec3f& p = cloud.points[i];
-    const std::int64_t key = std::int64_t(std::floor(p.x() / voxel)) * kStride + std::int64_t(std::floor(p.y() / voxel));
-    auto [it, inserted] = top.try_emplace(key, p.cast<double>(), double(p.z()));
-    if (!inserted && p.z() > it->second.second) it->second = {p.cast<double>(), double(p.z())};
+    const auto next = std::uint32_t(top.size());
+    const std::uint32_t at = index.insert(
+        CellMap::key(std::int64_t(std::floor(p.x() / voxel)), std::int64_t(std::floor(p.y() / voxel)), 0), next);
+    if (at == next) top.push_back(p.cast<double>());
+    else if (double(p.z()) > top[at].z()) top[at] = p.cast<double>();
   }
   Vec3d sum = Vec3d::Zero();
   double mass = 0.0;
   const Vec3d n = plane.normal.cast<double>();
-  for (const auto& [key, cell] : top) {
-    const Vec3d& t = cell.first;
+  for (const Vec3d& t : top) {
     const double h = n.dot(t) + double(plane.d);  // height above the ground
     if (h <= 0.0) continue;
     sum += h * (t - 0.5 * h * n);
