@@ -1,5 +1,7 @@
 #include "cairn/registration/scale_check.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -112,14 +114,19 @@ ScaleFit fit_scale(std::span<const SegmentPair> pairs, const ScaleCheckConfig& c
   }
   ScaleFit fit;
   for (int round = 0; round < config.rounds; ++round) {
-    std::vector<Vec3d> from, to;  // segment centroids (as fitted so far) -> aligned
-    for (std::size_t k = 0; k < sources.size(); ++k) {
+    // Each segment aligned on its own (in parallel; the results are gathered in segment order).
+    std::vector<std::optional<Vec3d>> aligned(sources.size());
+    tbb::parallel_for(std::size_t{0}, sources.size(), [&](std::size_t k) {
       std::vector<Vec3d> moved;
       for (const Vec3d& q : sources[k]) moved.push_back(fit.correction * q);
       const std::optional<Vec3d> d = align_translation(moved, trees[k], normals[k], config);
-      if (!d) continue;
+      if (d) aligned[k] = mean_of(moved) + *d;
+    });
+    std::vector<Vec3d> from, to;  // segment centroids (as fitted so far) -> aligned
+    for (std::size_t k = 0; k < sources.size(); ++k) {
+      if (!aligned[k]) continue;
       from.push_back(mean_of(sources[k]));
-      to.push_back(mean_of(moved) + *d);
+      to.push_back(*aligned[k]);
     }
     if (from.size() < std::size_t(config.min_segments)) return ScaleFit{};
     // RANSAC over triplets: a segment paired with a piece of its stone (or a stone seen from one
