@@ -1,9 +1,11 @@
 // CellMap (core/cell_map.hpp), the one voxel hash: exact round-trips through growth, the first
-// value of a key kept, absent keys, and distinct keys for neighbouring and negative cells.
+// value of a key kept, absent keys, no growth for a present key, a moved-from map, and distinct
+// keys for neighbouring and negative cells.
 #include <gtest/gtest.h>
 
 #include <random>
 #include <set>
+#include <utility>
 
 #include "cairn/core/cell_map.hpp"
 
@@ -29,6 +31,23 @@ TEST(CellMap, KeepsEveryEntryWhileGrowingFromEmpty) {
   map.clear();
   EXPECT_EQ(map.size(), 0u);
   EXPECT_EQ(map.find(keys[0]), CellMap::kAbsent);
+}
+
+TEST(CellMap, AKeyAlreadyPresentNeverGrowsAHalfFullMap) {
+  CellMap map(8);  // 16 slots: the 8th entry fills it to half
+  for (int i = 0; i < 8; ++i) map.insert(CellMap::key(i, 0, 0), std::uint32_t(i));
+  ASSERT_EQ(map.capacity(), 16u);
+  for (int i = 0; i < 8; ++i) EXPECT_EQ(map.insert(CellMap::key(i, 0, 0), 99u), std::uint32_t(i));
+  EXPECT_EQ(map.capacity(), 16u);  // re-inserting present keys: no rehash
+  EXPECT_EQ(map.insert(CellMap::key(8, 0, 0), 8u), 8u);  // a new key: grows
+  EXPECT_EQ(map.capacity(), 32u);
+  for (int i = 0; i <= 8; ++i) EXPECT_EQ(map.find(CellMap::key(i, 0, 0)), std::uint32_t(i));
+  // A moved-from map answers "absent" and takes new keys.
+  CellMap moved = std::move(map);
+  EXPECT_EQ(moved.find(CellMap::key(3, 0, 0)), 3u);
+  EXPECT_EQ(map.find(CellMap::key(3, 0, 0)), CellMap::kAbsent);  // NOLINT(bugprone-use-after-move)
+  EXPECT_EQ(map.insert(CellMap::key(3, 0, 0), 5u), 5u);
+  EXPECT_EQ(map.find(CellMap::key(3, 0, 0)), 5u);
 }
 
 TEST(CellMap, NeighbouringAndNegativeCellsHaveDistinctKeys) {

@@ -26,11 +26,17 @@ class CellMap {
   }
 
   /// Inserts key → value unless present; returns the stored value (== value: it was new).
+  /// Grows only for a new key (a key already present never rehashes a half-full map).
   std::uint32_t insert(std::uint64_t k, std::uint32_t value) {
-    if (2 * (size_ + 1) > keys_.size()) grow();
+    if (keys_.empty()) allocate(0);  // moved from
     std::size_t s = slot(k);
     for (; keys_[s] != kEmpty; s = (s + 1) & mask_)
       if (keys_[s] == k) return values_[s];
+    if (2 * (size_ + 1) > keys_.size()) {
+      grow();
+      for (s = slot(k); keys_[s] != kEmpty; s = (s + 1) & mask_) {
+      }
+    }
     keys_[s] = k;
     values_[s] = value;
     ++size_;
@@ -38,6 +44,7 @@ class CellMap {
   }
 
   [[nodiscard]] std::uint32_t find(std::uint64_t k) const {
+    if (keys_.empty()) return kAbsent;  // moved from
     for (std::size_t s = slot(k);; s = (s + 1) & mask_) {
       if (keys_[s] == k) return values_[s];
       if (keys_[s] == kEmpty) return kAbsent;
@@ -45,6 +52,8 @@ class CellMap {
   }
 
   [[nodiscard]] std::size_t size() const { return size_; }
+  /// Slots allocated (a power of two, at least twice the entries).
+  [[nodiscard]] std::size_t capacity() const { return keys_.size(); }
 
   /// Empty, with capacity for `expected` entries.
   void clear(std::size_t expected = 0) { allocate(expected); }

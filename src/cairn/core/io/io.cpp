@@ -298,11 +298,11 @@ void append_value(std::string& out, double value, Scalar type) {
 
 // ---- Named columns -> cloud attributes
 
-void store_column(RawCloud& raw, std::string_view name, const double* values, std::size_t stride,
-                  ColorScale scale) {
+void store_column(RawCloud& raw, std::string_view name, const double* values, std::size_t first,
+                  std::size_t stride, ColorScale scale) {
   const auto n = raw.xyz.size();
   auto& a = raw.attributes;
-  const auto at = [&](std::size_t i) { return values[i * stride]; };
+  const auto at = [&](std::size_t i) { return values[first + i * stride]; };
   const NameRule* rule = classify(name);
   const auto slot = rule ? rule->slot : Slot::Field;
   const int axis = rule ? rule->axis : 0;

@@ -287,17 +287,19 @@ Header parse_header(std::string_view bytes, const path& file) {
 
 // ---- Data
 
-void store_field(detail::RawCloud& raw, const Field& f, const double* values, std::size_t stride) {
+/// Point i's value of field f is values[first + i * stride].
+void store_field(detail::RawCloud& raw, const Field& f, const double* values, std::size_t first,
+                 std::size_t stride) {
   if (!f.packed_color()) {
     const auto scale =
         detail::is_floating(f.type) ? detail::ColorScale::Unit : detail::ColorScale::Byte;
-    detail::store_column(raw, f.name, values, stride, scale);
+    detail::store_column(raw, f.name, values, first, stride, scale);
     return;
   }
   auto& colors = raw.attributes.colors;
   colors.resize(raw.xyz.size());
   for (std::size_t i = 0; i < colors.size(); ++i) {
-    const auto v = static_cast<std::uint32_t>(values[i * stride]);
+    const auto v = static_cast<std::uint32_t>(values[first + i * stride]);
     colors[i] = {static_cast<std::uint8_t>(v >> kRedShift & kByteMask),
                  static_cast<std::uint8_t>(v >> kGreenShift & kByteMask),
                  static_cast<std::uint8_t>(v & kByteMask)};
@@ -320,7 +322,7 @@ detail::RawCloud decode_binary(const Header& h, const char* data, bool field_maj
     // Packed colours are read as their uint32 bits, whatever the declared type.
     const auto type = f.packed_color() ? Scalar::UInt32 : f.type;
     detail::decode_column(data + start, stride, n, type, !detail::kHostLittleEndian, column.data());
-    store_field(raw, f, column.data(), 1);
+    store_field(raw, f, column.data(), 0, 1);
   }
   return raw;
 }
@@ -391,7 +393,7 @@ detail::RawCloud read_ascii(const Header& h, std::string_view data, const path& 
   detail::RawCloud raw;
   raw.xyz.assign(h.points, Vec3d::Zero());
   for (std::size_t k = 0; k < kept.size(); ++k)
-    store_field(raw, *kept[k], rows.data() + k, kept.size());
+    store_field(raw, *kept[k], rows.data(), k, kept.size());
   return raw;
 }
 

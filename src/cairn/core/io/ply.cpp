@@ -222,7 +222,7 @@ detail::RawCloud read_vertex_columns(BinaryIn& in, const Element& e, const path&
   for (const auto& p : e.props) {
     detail::decode_column(in.rest().data() + offset, record, e.count, p.type, in.swap(),
                           column.data());
-    detail::store_column(raw, p.name, column.data(), 1, color_scale(p.type));
+    detail::store_column(raw, p.name, column.data(), 0, 1, color_scale(p.type));
     offset += detail::scalar_size(p.type);
   }
   in.skip_bytes(record * e.count);
@@ -244,7 +244,7 @@ detail::RawCloud read_vertices(In& in, const Element& e, const path& file) {
   raw.xyz.assign(e.count, Vec3d::Zero());
   for (std::size_t k = 0; k < width; ++k)
     if (!e.props[k].count_type)
-      detail::store_column(raw, e.props[k].name, rows.data() + k, width,
+      detail::store_column(raw, e.props[k].name, rows.data(), k, width,
                            color_scale(e.props[k].type));
   return raw;
 }

@@ -142,7 +142,7 @@ detail::RawCloud raw_from_columns(const std::vector<std::string>& names, const d
   detail::RawCloud raw;
   raw.xyz.assign(n, Vec3d::Zero());
   for (std::size_t c = 0; c < names.size(); ++c)
-    detail::store_column(raw, names[c], values + c, names.size(), detail::ColorScale::Byte);
+    detail::store_column(raw, names[c], values, c, names.size(), detail::ColorScale::Byte);
   return raw;
 }
 
@@ -209,7 +209,7 @@ RawCloud read_kitti(std::string_view bytes, const path& file) {
   RawCloud raw;
   raw.xyz.assign(n, Vec3d::Zero());
   for (std::size_t c = 0; c < kKittiValues; ++c)
-    store_column(raw, names[c], values.data() + c * n, 1, ColorScale::Byte);
+    store_column(raw, names[c], values.data(), c * n, 1, ColorScale::Byte);
   return raw;
 }
 
@@ -289,7 +289,7 @@ RawCloud read_npy(std::string_view bytes, const path& file) {
   raw.xyz.assign(n, Vec3d::Zero());
   const auto names = default_names(columns, false);
   for (std::size_t c = 0; c < columns; ++c)
-    store_column(raw, names[c], values.data() + c * n, 1, ColorScale::Byte);
+    store_column(raw, names[c], values.data(), c * n, 1, ColorScale::Byte);
   return raw;
 }
 
