@@ -91,11 +91,10 @@ void append_value(std::string& out, double value, Scalar type);
 
 /// How colour channels are stored: bytes 0..255 or floats 0..1.
 enum class ColorScale { Byte, Unit };
-/// Stores a decoded column (values[0], values[stride], ...; one per point of raw.xyz) into the
-/// slot its name selects: x y z, nx/normal_x..., red/r/diffuse_red..., time/timestamp/t, label,
-/// anything else a ScalarField. Names are matched case-insensitively.
-/// Point i's value is values[first + i * stride] (an offset, not a pointer moved by it: an empty
-/// table's data() may be null).
+/// Stores a decoded column (values[first], values[first + stride], ...; one per point of
+/// raw.xyz) into the slot its name selects: x y z, nx/normal_x..., red/r/diffuse_red...,
+/// time/timestamp/t, label, anything else a ScalarField. Names are matched case-insensitively.
+/// `first` is an offset, not a pointer moved by it: an empty table's data() may be null.
 void store_column(RawCloud& raw, std::string_view name, const double* values, std::size_t first,
                   std::size_t stride, ColorScale scale);
 /// True if the name selects coordinate `axis` (0..2).
