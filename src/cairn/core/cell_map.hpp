@@ -34,8 +34,7 @@ class CellMap {
       if (keys_[s] == k) return values_[s];
     if (2 * (size_ + 1) > keys_.size()) {
       grow();
-      for (s = slot(k); keys_[s] != kEmpty; s = (s + 1) & mask_) {
-      }
+      return insert(k, value);  // once: the grown map has room
     }
     keys_[s] = k;
     values_[s] = value;
