@@ -76,8 +76,10 @@ PlaneFit fit_plane_ransac(std::span<const Vec3f> points, std::span<const std::ui
   std::uniform_int_distribution<std::size_t> pick(0, n - 1);
   int it = 0;
   for (; it < config.max_iterations && it < needed; ++it) {
-    const auto h = plane_from_three(points[indices[pick(rng)]], points[indices[pick(rng)]],
-                                    points[indices[pick(rng)]]);
+    // One draw per statement: a call's argument order is unspecified (GCC: right to left, the order
+    // kept so that a seed gives the same result with every compiler and as before).
+    const std::size_t c = pick(rng), b = pick(rng), a = pick(rng);
+    const auto h = plane_from_three(points[indices[a]], points[indices[b]], points[indices[c]]);
     if (!h) continue;
     if (config.axis && std::abs(h->normal.dot(*config.axis)) < cos_tilt) continue;
     const std::size_t count = count_inliers(points, scored, *h, thr);

@@ -40,8 +40,12 @@ double robustness(const PlanningCloud& pc, const KdTree& tree, const Candidate& 
   LocalPoints local;
   int kept = 0;
   for (int k = 0; k < c.perturbations; ++k) {
-    const Vector3d dt(gauss(rng) * sigma_t, gauss(rng) * sigma_t, gauss(rng) * sigma_t);
-    const Vector3d dr(gauss(rng), gauss(rng), gauss(rng));
+    // One draw per statement: a call's argument order is unspecified (GCC: right to left, the order
+    // kept so that a seed gives the same result with every compiler and as before).
+    const double tz = gauss(rng), ty = gauss(rng), tx = gauss(rng);
+    const Vector3d dt = sigma_t * Vector3d(tx, ty, tz);
+    const double rz = gauss(rng), ry = gauss(rng), rx = gauss(rng);
+    const Vector3d dr(rx, ry, rz);
     const double mu = std::max(0.0, mu_design * (1.0 + c.sigma_mu * gauss(rng)));
     Isometry3d P = Isometry3d::Identity();
     P.translation() = dt;

@@ -299,7 +299,10 @@ Similarity random_sfm_frame(const DroneConfig& c, std::mt19937_64& rng) {
   } else {  // uniform on SO(3): normalised 4-D Gaussian quaternion
     Eigen::Quaterniond q;
     do {
-      q = Eigen::Quaterniond(standard_normal(rng), standard_normal(rng), standard_normal(rng), standard_normal(rng));
+      // One draw per statement: a call's argument order is unspecified (GCC: right to left, the order
+      // kept so that a seed gives the same result with every compiler and as before).
+      const double z = standard_normal(rng), y = standard_normal(rng), x = standard_normal(rng);
+      q = Eigen::Quaterniond(standard_normal(rng), x, y, z);
     } while (q.norm() < 1e-6);
     S.rotation = q.normalized().toRotationMatrix();
   }
@@ -310,9 +313,11 @@ Similarity random_sfm_frame(const DroneConfig& c, std::mt19937_64& rng) {
 Eigen::Isometry3d random_vins_frame(const DroneConfig& c, std::mt19937_64& rng) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = Eigen::AngleAxisd(2 * kPi * uniform01(rng) - kPi, Vector3d::UnitZ()).toRotationMatrix();
-  T.translation() = Vector3d(c.vins_max_translation * (2 * uniform01(rng) - 1),
-                             c.vins_max_translation * (2 * uniform01(rng) - 1),
-                             kVinsZTranslation * (2 * uniform01(rng) - 1));
+  // One draw per statement: a call's argument order is unspecified (GCC: right to left, the order
+  // kept so that a seed gives the same result with every compiler and as before).
+  const double z = uniform01(rng), y = uniform01(rng), x = uniform01(rng);
+  T.translation() = Vector3d(c.vins_max_translation * (2 * x - 1), c.vins_max_translation * (2 * y - 1),
+                             kVinsZTranslation * (2 * z - 1));
   return T;
 }
 
@@ -441,7 +446,8 @@ io::ColmapModel to_colmap_model(const DroneSurvey& survey, std::size_t max_point
       const auto& im = survey.images[a];
       const Vector3d x = im.q_cam_sfm.toRotationMatrix() * X + im.t_cam_sfm;
       if (x.z() <= 0) continue;
-      const Eigen::Vector2d noise(kPixelNoise * standard_normal(rng), kPixelNoise * standard_normal(rng));
+      const double noise_v = standard_normal(rng), noise_u = standard_normal(rng);  // GCC's order (see above)
+      const Eigen::Vector2d noise(kPixelNoise * noise_u, kPixelNoise * noise_v);
       const Eigen::Vector2d uv = Eigen::Vector2d(k.fx * x.x() / x.z() + k.cx, k.fy * x.y() / x.z() + k.cy) + noise;
       if (!(uv.x() >= 0 && uv.x() < k.width && uv.y() >= 0 && uv.y() < k.height)) continue;
       obs.emplace_back(a, uv);
