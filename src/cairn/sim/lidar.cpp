@@ -42,7 +42,32 @@ struct ShapePose {
   Eigen::Isometry3d T_shape_sensor;
   Eigen::Vector3d centre;  // in the sensor frame
   double radius;
+  // Azimuths (vlp16_direction's convention) of the rays that can pass through the bounding
+  // sphere: within half_width of `azimuth`, or any when the sphere is close to the sensor.
+  double azimuth = 0.0;
+  double half_width = 0.0;
+  bool any_azimuth = true;
 };
+
+ShapePose pose_shape(const Shape& s, const Eigen::Isometry3d& T_sensor_shape) {
+  ShapePose p{&s, T_sensor_shape.inverse(), T_sensor_shape.translation(), s.bounding_radius()};
+  // A ray d passing the sphere test of simulate_sweep (c.d + r >= 0, |c - (c.d) d| <= r) has
+  // c.d >= 0 once |c| > sqrt(2) r, so its horizontal projection passes within r of the centre's
+  // projection, at an azimuth within asin(r / rho) of the centre's (rho > r its horizontal
+  // distance). Conservative: every ray this rejects, the sphere test rejects too.
+  const double rho = p.centre.head<2>().norm();
+  if (p.centre.norm() > 1.5 * p.radius && rho > 1.01 * p.radius) {
+    p.any_azimuth = false;
+    p.azimuth = std::atan2(p.centre.x(), p.centre.y());
+    p.half_width = std::asin(p.radius / rho) + 1e-6;
+  }
+  return p;
+}
+
+/// Whether the rays of a firing cycle at `azimuth` can reach the shape's bounding sphere.
+bool in_azimuth(const ShapePose& p, double azimuth) {
+  return p.any_azimuth || std::abs(std::remainder(azimuth - p.azimuth, 2.0 * std::numbers::pi)) <= p.half_width;
+}
 }  // namespace
 
 double SplitMix64::normal() {
@@ -101,17 +126,20 @@ Sweep simulate_sweep(const RayScene& world, const LidarMotion& motion, const Lid
       const auto links = motion.link_poses(t);
       for (std::size_t l = 0; l < motion.robot->links.size(); ++l) {
         for (const auto& s : motion.robot->links[l].shapes) {
-          const Eigen::Isometry3d T_sensor_shape = T_sensor_world * links[l] * s.T_link_shape;
-          shapes.push_back({&s, T_sensor_shape.inverse(), T_sensor_shape.translation(), s.bounding_radius()});
+          shapes.push_back(pose_shape(s, T_sensor_world * links[l] * s.T_link_shape));
         }
       }
     }
+    std::vector<const ShapePose*> facing;  // the shapes the cycle's rays can reach
     for (int c = range.begin(); c != range.end(); ++c) {
       const double t = t_start + c * cycle_time;
       const Eigen::Isometry3d T_ws = motion.T_world_sensor(t);
       SplitMix64 rng(mix_seed(sweep_seed, static_cast<std::uint64_t>(c)));
       // Azimuth clockwise from +y: the head turns by 360 deg per revolution.
       const double azimuth = 2.0 * std::numbers::pi * c / cycles;
+      facing.clear();
+      for (const ShapePose& sp : shapes)
+        if (in_azimuth(sp, azimuth)) facing.push_back(&sp);
       const Eigen::Vector3d origin = T_ws.translation();
       for (int l = 0; l < kLasers; ++l) {
         const Eigen::Vector3d d_sensor = vlp16_direction(l, azimuth);
@@ -122,11 +150,11 @@ Sweep simulate_sweep(const RayScene& world, const LidarMotion& motion, const Lid
         double range_hit = hit.hit() ? hit.t : std::numeric_limits<double>::infinity();
         std::int32_t label = hit.label;
         double cos_incidence = hit.hit() ? std::abs(hit.normal.cast<double>().dot(d)) : 1.0;
-        for (const auto& sp : shapes) {
+        for (const ShapePose* sp : facing) {
           // Sensor frame: the ray starts at the origin. Sphere rejection before the exact test.
-          const double along = sp.centre.dot(d_sensor);
-          if (along + sp.radius < 0 || (sp.centre - along * d_sensor).squaredNorm() > sp.radius * sp.radius) continue;
-          const double ts = sp.shape->intersect(sp.T_shape_sensor.translation(), sp.T_shape_sensor.linear() * d_sensor);
+          const double along = sp->centre.dot(d_sensor);
+          if (along + sp->radius < 0 || (sp->centre - along * d_sensor).squaredNorm() > sp->radius * sp->radius) continue;
+          const double ts = sp->shape->intersect(sp->T_shape_sensor.translation(), sp->T_shape_sensor.linear() * d_sensor);
           if (ts >= config.min_range && ts < range_hit) {
             range_hit = ts;
             label = kLabelRobot;
