@@ -54,7 +54,9 @@ ShapePose pose_shape(const Shape& s, const Eigen::Isometry3d& T_sensor_shape) {
   // A ray d passing the sphere test of simulate_sweep (c.d + r >= 0, |c - (c.d) d| <= r) has
   // c.d >= 0 once |c| > sqrt(2) r, so its horizontal projection passes within r of the centre's
   // projection, at an azimuth within asin(r / rho) of the centre's (rho > r its horizontal
-  // distance). Conservative: every ray this rejects, the sphere test rejects too.
+  // distance). Conservative: every ray this rejects, the sphere test rejects too. The margins
+  // (1.5 r for sqrt(2) r, 1.01 r for r, 1e-6 rad on the interval) absorb the rounding of
+  // atan2/asin; a shape inside them is tested for every azimuth.
   const double rho = p.centre.head<2>().norm();
   if (p.centre.norm() > 1.5 * p.radius && rho > 1.01 * p.radius) {
     p.any_azimuth = false;
