@@ -21,6 +21,9 @@ using Eigen::Isometry3d;
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+/// [m] A box's shadow is grown by this before it rejects a point: far above the rounding of the
+/// exact slab test, far below any length of the gripper or the cloud.
+constexpr double kShadowTolerance = 1e-6;
 
 Matrix3d axis_rotation(const Vector3d& axis, double deg) { return Eigen::AngleAxisd(deg * kDeg, axis).toRotationMatrix(); }
 
@@ -154,10 +157,8 @@ void close_with_backoff(const SampleContext& ctx, const Isometry3d& T, double op
     if (back * voxel > pushed) break;
     Isometry3d Tb = T;
     Tb.translation() -= back * voxel * T.linear().col(0);
-    Neighbors fine;
     LocalPoints local;
-    ctx.tree.radius(closing_centre(ctx.gripper, Tb).cast<float>(), float(closing_reach(ctx.gripper, opening)), fine);
-    gather_local(ctx.pc.cloud, fine.indices, Tb, ctx.gripper, local, clearance);
+    gather_local(ctx.pc.cloud, ctx.tree, Tb, opening, ctx.gripper, local, clearance);
     const auto in_region = std::count_if(local.object.begin(), local.object.end(),
                                          [&](const Vector3d& q) { return open.encloses(q); });
     if (std::size_t(in_region) < cc.min_object_points) break;
@@ -174,9 +175,26 @@ void close_with_backoff(const SampleContext& ctx, const Isometry3d& T, double op
   counts.hypotheses += hypothesis ? 1 : 0;
 }
 
-/// One orientation at one pre-grasp opening: pushed, then closed (Sec. 5.3).
+/// The collision points of one sample in G at the push's start for one orientation R, those
+/// beside `lateral` (|y|, |z|) dropped: they can never be touched.
+std::vector<Vector3d> start_points(const SampleNeighbourhood& n, const Matrix3d& R, const Eigen::Vector2d& lateral) {
+  const Eigen::Matrix3f Rt = R.transpose().cast<float>();
+  const float x0 = float(n.start), y_max = float(lateral.x()), z_max = float(lateral.y());
+  std::vector<Vector3d> out;
+  for (const Vec3f& d : n.around) {
+    const float y = Rt.row(1).dot(d);
+    if (std::abs(y) > y_max) continue;
+    const float z = Rt.row(2).dot(d);
+    if (std::abs(z) > z_max) continue;
+    out.emplace_back(double(Rt.row(0).dot(d) + x0), double(y), double(z));
+  }
+  return out;
+}
+
+/// One orientation at one pre-grasp opening: pushed, then closed (Sec. 5.3). `start_G`: the
+/// orientation's start_points for a lateral extent at least this opening's.
 void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matrix3d& R, double opening,
-              std::vector<Candidate>& out, CandidateCounts& counts) {
+              std::span<const Vector3d> start_G, std::vector<Candidate>& out, CandidateCounts& counts) {
   const CandidateConfig& cc = ctx.config.candidates;
   const double voxel = ctx.config.cloud.voxel, padding = cc.padding_voxels * voxel;
   const std::vector<ConvexPart> parts = gripper_parts(ctx.gripper, opening);
@@ -184,18 +202,13 @@ void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matr
   const Eigen::Vector2d lateral = lateral_extent(parts) + Eigen::Vector2d::Constant(padding);
   ++counts.poses;
   const Vector3d o_start = n.p - n.start * R.col(0);
-  // Collision points in G at the start; those beside the gripper's lateral extent can never be touched.
-  const Eigen::Matrix3f Rt = R.transpose().cast<float>();
-  const float x0 = float(n.start), y_max = float(lateral.x()), z_max = float(lateral.y());
-  std::vector<Vector3d> start_G;
-  for (const Vec3f& d : n.around) {
-    const float y = Rt.row(1).dot(d);
-    if (std::abs(y) > y_max) continue;
-    const float z = Rt.row(2).dot(d);
-    if (std::abs(z) > z_max) continue;
-    start_G.emplace_back(double(Rt.row(0).dot(d) + x0), double(y), double(z));
-  }
-  const std::optional<double> s = advance_to_contact(boxes, start_G);
+  // The same points (and order) start_points would give for this opening's lateral extent.
+  const float y_max = float(lateral.x()), z_max = float(lateral.y());
+  std::vector<Vector3d> mine;
+  mine.reserve(start_G.size());
+  for (const Vector3d& q : start_G)
+    if (std::abs(float(q.y())) <= y_max && std::abs(float(q.z())) <= z_max) mine.push_back(q);
+  const std::optional<double> s = advance_to_contact(boxes, mine);
   if (!s || !std::isfinite(*s)) return;  // collision at the start, or nothing touched
   Isometry3d T = Isometry3d::Identity();
   T.linear() = R;
@@ -227,9 +240,13 @@ void sample_candidates(const SampleContext& ctx, std::uint32_t sample, std::vect
   std::vector<Matrix3d> rotations = orientations(F, cc);
   rotations.insert(rotations.end(), ctx.vertical.begin(), ctx.vertical.end());
   for (const Matrix3d& R : rotations) {
-    for (const double share : cc.openings) try_pose(ctx, n, R, share * max_opening(ctx.gripper), out, counts);
-    if (cc.fit_opening)
-      try_pose(ctx, n, R, fitted_opening(n, R.transpose().cast<float>(), ctx.gripper, padding), out, counts);
+    std::vector<double> openings;
+    for (const double share : cc.openings) openings.push_back(share * max_opening(ctx.gripper));
+    if (cc.fit_opening) openings.push_back(fitted_opening(n, R.transpose().cast<float>(), ctx.gripper, padding));
+    Eigen::Vector2d widest = Eigen::Vector2d::Zero();
+    for (const double o : openings) widest = widest.cwiseMax(lateral_extent(gripper_parts(ctx.gripper, o)));
+    const std::vector<Vector3d> start_G = start_points(n, R, widest + Eigen::Vector2d::Constant(padding));
+    for (const double o : openings) try_pose(ctx, n, R, o, start_G, out, counts);
   }
 }
 
@@ -280,9 +297,13 @@ double closing_reach(const GripperConfig& g, double opening) {
 
 std::vector<SweptBox> swept_boxes(const std::vector<ConvexPart>& parts, double padding) {
   std::vector<SweptBox> out;
-  for (const ConvexPart& p : parts)
-    out.push_back({.center = p.center, .half = p.half_extents + (p.axes.transpose() * Vector3d(0.0, padding, padding)).cwiseAbs(),
-                   .axes = p.axes, .dir = -p.axes.transpose().col(0)});
+  for (const ConvexPart& p : parts) {
+    SweptBox b{.center = p.center, .half = p.half_extents + (p.axes.transpose() * Vector3d(0.0, padding, padding)).cwiseAbs(),
+               .axes = p.axes, .dir = -p.axes.transpose().col(0), .shadow = Eigen::Vector2d::Zero()};
+    const Vector3d extent = p.axes.cwiseAbs() * b.half;  // the box's half extents along G's axes
+    b.shadow = extent.tail<2>() + Eigen::Vector2d::Constant(kShadowTolerance);
+    out.push_back(b);
+  }
   return out;
 }
 
@@ -290,6 +311,7 @@ std::optional<double> advance_to_contact(const std::vector<SweptBox>& boxes, std
   double first = kInf;
   for (const Vector3d& q : points_G) {
     for (const SweptBox& b : boxes) {
+      if (std::abs(q.y() - b.center.y()) > b.shadow.x() || std::abs(q.z() - b.center.z()) > b.shadow.y()) continue;
       const auto [in, out] = sweep_interval(b, q);
       if (in > out || out < 0.0) continue;  // never touched, or behind the start
       if (in <= 0.0) return std::nullopt;   // inside at the start
@@ -299,44 +321,86 @@ std::optional<double> advance_to_contact(const std::vector<SweptBox>& boxes, std
   return first;
 }
 
-void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Isometry3d& T,
-                  const GripperConfig& g, LocalPoints& out, double clearance) {
-  out.object.clear();
-  out.normals.clear();
-  out.environment.clear();
-  const Matrix3d Rt = T.linear().transpose();
-  const Eigen::Matrix3f Rf = Rt.cast<float>();
-  const Vec3f o = T.translation().cast<float>();
-  const float half = float(0.5 * g.jaw_height);
-  for (const std::uint32_t i : indices) {
-    const Vec3f d = cloud.points[i] - o;
-    if (std::abs(Rf.row(2).dot(d)) > half) continue;  // cheap rejection first
-    const Vector3d q = (Rf * d).cast<double>();
-    const bool object = cloud.labels[i] == kObject;
-    if (q.x() <= 0.0 || q.x() > g.jaw_length + (object ? 0.0 : clearance)) continue;
+namespace {
+
+/// gather_local, one point at a time (the frame's transforms prepared once).
+class LocalGatherer {
+ public:
+  LocalGatherer(const PointCloud& cloud, const Isometry3d& T, const GripperConfig& g, LocalPoints& out, double clearance)
+      : cloud_(cloud), g_(g), out_(out), clearance_(clearance), Rt_(T.linear().transpose()), Rf_(Rt_.cast<float>()),
+        o_(T.translation().cast<float>()), half_(float(0.5 * g.jaw_height)) {
+    out.object.clear();
+    out.normals.clear();
+    out.environment.clear();
+  }
+  void operator()(std::uint32_t i) const {
+    const Vec3f d = cloud_.points[i] - o_;
+    if (std::abs(Rf_.row(2).dot(d)) > half_) return;  // cheap rejection first
+    const Vector3d q = (Rf_ * d).cast<double>();
+    const bool object = cloud_.labels[i] == kObject;
+    if (q.x() <= 0.0 || q.x() > g_.jaw_length + (object ? 0.0 : clearance_)) return;
     if (object) {
-      out.object.push_back(q);
-      out.normals.push_back(Rt * cloud.normals[i].cast<double>());
+      out_.object.push_back(q);
+      out_.normals.push_back(Rt_ * cloud_.normals[i].cast<double>());
     } else {
-      out.environment.push_back(q);
+      out_.environment.push_back(q);
     }
   }
+
+ private:
+  const PointCloud& cloud_;
+  const GripperConfig& g_;
+  LocalPoints& out_;
+  double clearance_;
+  Matrix3d Rt_;
+  Eigen::Matrix3f Rf_;
+  Vec3f o_;
+  float half_;
+};
+
+}  // namespace
+
+void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Isometry3d& T,
+                  const GripperConfig& g, LocalPoints& out, double clearance) {
+  const LocalGatherer gather(cloud, T, g, out, clearance);
+  for (const std::uint32_t i : indices) gather(i);
+}
+
+void gather_local(const PointCloud& cloud, const KdTree& tree, const Isometry3d& T, double opening,
+                  const GripperConfig& g, LocalPoints& out, double clearance) {
+  const LocalGatherer gather(cloud, T, g, out, clearance);
+  tree.for_each_in_radius(closing_centre(g, T).cast<float>(), float(closing_reach(g, opening)),
+                          [&](std::uint32_t i, float) { gather(i); });
 }
 
 namespace {
 
 
+/// The object points between the open jaws, as contiguous coordinates (the closing's bisection
+/// runs over them a few dozen times).
+struct RelevantPoints {
+  std::vector<std::size_t> index;  // into the object's points
+  std::vector<double> x, y;
+};
+
 /// The shifts of the object along y that keep it off each jaw at `angle`: [dL, dR].
-std::pair<double, double> shift_bounds(const JawLines& j, std::span<const Vector3d> obj,
-                                       std::span<const std::size_t> rel) {
-  double dL = -kInf, dR = kInf;
-  for (const std::size_t i : rel) {
-    const Vector3d& q = obj[i];
-    if (q.x() > j.reach) continue;
-    dL = std::max(dL, j.left(q.x()) - q.y());
-    dR = std::min(dR, j.right(q.x()) - q.y());
+std::pair<double, double> shift_bounds(const JawLines& j, const RelevantPoints& rel) {
+  // Four independent running bounds (max and min are exact in any order): the bisection of
+  // close_jaws calls this ~26 times per closing.
+  constexpr std::size_t kLanes = 4;
+  std::array<double, kLanes> dL, dR;
+  dL.fill(-kInf);
+  dR.fill(kInf);
+  const std::size_t n = rel.x.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const double x = rel.x[k], y = rel.y[k];
+    const std::size_t lane = k % kLanes;
+    const double l = j.left(x) - y, r = j.right(x) - y;
+    const bool in = x <= j.reach;
+    dL[lane] = in && l > dL[lane] ? l : dL[lane];
+    dR[lane] = in && r < dR[lane] ? r : dR[lane];
   }
-  return {dL, dR};
+  return {std::max({dL[0], dL[1], dL[2], dL[3]}), std::min({dR[0], dR[1], dR[2], dR[3]})};
 }
 
 /// Does a jaw sweep through (or within `clearance` of) a non-object point between the two angles?
@@ -394,17 +458,21 @@ Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Ve
                    std::span<const Vector3d> normals, std::span<const Vector3d> env, double patch, double clearance) {
   const JawLines open = jaw_lines(g, open_angle);
   Closing c;
-  std::vector<std::size_t> rel;  // object points between the open jaws
+  RelevantPoints rel;
   for (std::size_t i = 0; i < obj.size(); ++i) {
     const Vector3d& q = obj[i];
-    if (q.x() > 0 && q.x() <= g.jaw_length && q.y() > open.left(q.x()) && q.y() < open.right(q.x())) rel.push_back(i);
+    if (q.x() > 0 && q.x() <= g.jaw_length && q.y() > open.left(q.x()) && q.y() < open.right(q.x())) {
+      rel.index.push_back(i);
+      rel.x.push_back(q.x());
+      rel.y.push_back(q.y());
+    }
   }
   const double closed = min_jaw_angle(g);
   auto feasible = [&](double a) {
-    const auto [dL, dR] = shift_bounds(jaw_lines(g, a), obj, rel);
+    const auto [dL, dR] = shift_bounds(jaw_lines(g, a), rel);
     return dL <= dR;
   };
-  if (rel.empty() || feasible(closed)) {
+  if (rel.index.empty() || feasible(closed)) {
     c.failure = "empty";
     return c;
   }
@@ -420,10 +488,10 @@ Closing close_jaws(const GripperConfig& g, double open_angle, std::span<const Ve
     return c;
   }
   const JawLines at = jaw_lines(g, c.angle);
-  const auto [dL, dR] = shift_bounds(at, obj, rel);
+  const auto [dL, dR] = shift_bounds(at, rel);
   c.shift = 0.5 * (dL + dR);
-  contact_patch(at, obj, normals, rel, c.angle, dL, patch, -1, c);
-  contact_patch(at, obj, normals, rel, c.angle, dR, patch, +1, c);
+  contact_patch(at, obj, normals, rel.index, c.angle, dL, patch, -1, c);
+  contact_patch(at, obj, normals, rel.index, c.angle, dR, patch, +1, c);
   c.closed = c.patch_points[0] > 0 && c.patch_points[1] > 0;
   if (!c.closed) c.failure = "empty";
   return c;

@@ -33,6 +33,8 @@ struct SweptBox {
   Eigen::Vector3d center, half;
   Eigen::Matrix3d axes;   // columns in G
   Eigen::Vector3d dir;    // axes^T (-x_G): a point's motion in box coordinates per unit advance
+  Eigen::Vector2d shadow;  // half extents of the box's projection along x_G on G's (y, z): a
+                           // point farther than this from the centre's (y, z) is never touched
 };
 /// The parts' boxes, each grown by `padding` across the approach (along G's y and z; a box's
 /// axes are G's turned about z, so the growth is the padding seen along each box axis).
@@ -89,6 +91,10 @@ struct LocalPoints {
 /// they lie within the jaws' height (|z| <= jaw_height/2) in front of the palm, up to the jaws'
 /// length (the environment's up to `clearance` beyond it).
 void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Eigen::Isometry3d& T,
+                  const GripperConfig& gripper, LocalPoints& out, double clearance = 0.0);
+/// The same over the points of `tree` (indexing cloud.points) within closing_reach(opening) of
+/// closing_centre(T), in the tree's order, without collecting the indices first.
+void gather_local(const PointCloud& cloud, const KdTree& tree, const Eigen::Isometry3d& T, double opening,
                   const GripperConfig& gripper, LocalPoints& out, double clearance = 0.0);
 
 /// Samples, rotates, pushes and closes (Sec. 5.3); `tree` indexes pc.cloud.points. Returns the

@@ -6,6 +6,9 @@
 #include <numbers>
 #include <random>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "cairn/core/cell_map.hpp"
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
@@ -17,6 +20,8 @@ namespace cairn::grasp {
 namespace {
 
 constexpr unsigned kGroundSeed = 1;  // RANSAC of the ground plane (deterministic planning)
+constexpr float kSearchMargin = 1e-3f;   // relative: the object test's ball beyond the float rounding
+constexpr std::size_t kLabelGrain = 2048;  // points per parallel task
 
 struct CropRegion {
   Vec3d centre = Vec3d::Zero();  // the model's centroid
@@ -59,11 +64,17 @@ void label_object(PointCloud& cloud, const PointCloud& model, double distance) {
   for (std::size_t i = 0; i < model.size(); ++i) local[i] = (model.world(i) - cloud.origin).cast<float>();
   const KdTree tree(local);
   const float d2 = float(distance * distance);
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    float sq = 0.0f;
-    (void)tree.nearest(cloud.points[i], &sq);
-    cloud.labels[i] = sq <= d2 ? kObject : kEnvironment;
-  }
+  // A model point at squared distance <= d2 (the nearest's test) lies strictly inside the
+  // slightly larger search radius, with its distance computed as the nearest search would: the
+  // same labels as from the nearest point, at the cost of a small-ball search.
+  const float search = std::sqrt(d2) * (1.0f + kSearchMargin);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, cloud.size(), kLabelGrain), [&](const auto& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      bool near = false;
+      tree.for_each_in_radius(cloud.points[i], search, [&](std::uint32_t, float sq) { near = near || sq <= d2; });
+      cloud.labels[i] = near ? kObject : kEnvironment;
+    }
+  });
 }
 
 std::optional<Plane> ground_plane(const PointCloud& cloud, const PlanningCloudConfig& c) {
