@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
+#include <random>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
@@ -67,6 +69,69 @@ TEST(Collision, TheGripperAdvancesUntilPalmOrJawTouches) {
   EXPECT_FALSE(advance_to_contact(boxes, inside_palm).has_value());
   const std::vector<Vector3d> beside{{1.0, 0.0, 2.0}};  // above the gripper: never touched
   EXPECT_TRUE(std::isinf(advance_to_contact(boxes, beside).value()));
+}
+
+// The push's box shadows only skip points the exact slab test rejects: on random points around
+// gripper poses turned about z (every box), the advance equals a sweep over the points one at a
+// time (a point's first contact is a min over points, so one by one gives the reference).
+TEST(Collision, BoxShadowsRejectOnlyPointsNoBoxCanTouch) {
+  const GripperConfig g;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  for (const double opening : {max_opening(g), 0.55 * max_opening(g), 0.9}) {
+    const std::vector<SweptBox> boxes = swept_boxes(gripper_parts(g, opening), 0.1);
+    int touched = 0;
+    for (int k = 0; k < 4000; ++k) {
+      const Vector3d q(u(rng), u(rng), 0.3 * u(rng));
+      const std::optional<double> s = advance_to_contact(boxes, std::vector<Vector3d>{q});
+      // Reference: the slab test without shadows, box by box.
+      std::optional<double> ref = std::numeric_limits<double>::infinity();
+      for (const SweptBox& b : boxes) {
+        SweptBox wide = b;
+        wide.shadow = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+        const std::optional<double> one = advance_to_contact(std::vector<SweptBox>{wide}, std::vector<Vector3d>{q});
+        if (!one) ref = std::nullopt;
+        if (ref && one) ref = std::min(*ref, *one);
+      }
+      ASSERT_EQ(s.has_value(), ref.has_value()) << q.transpose();
+      if (s) {
+        EXPECT_EQ(*s, *ref) << q.transpose();
+        touched += std::isfinite(*s) ? 1 : 0;
+      }
+    }
+    EXPECT_GT(touched, 100);  // the random points do reach the boxes
+  }
+}
+
+// Gathering a pose's points during the kd-tree visit gives what gathering the radius search's
+// indices gives, point for point in the same order (the contact patches sum them).
+TEST(Collision, GatheringDuringTheTreeVisitEqualsGatheringTheIndices) {
+  PointCloud cloud = test::ground_square(2.5, 0.0, 0.05);
+  const PointCloud box = test::box_surface(Vector3d(0.3, 0.1, 0.4), Vector3d(0.4, 0.3, 0.4), 0.05);
+  cloud.labels.assign(cloud.size(), kEnvironment);
+  for (std::size_t i = 0; i < box.size(); ++i) {
+    cloud.points.push_back(box.points[i]);
+    cloud.normals.push_back(box.normals[i]);
+    cloud.labels.push_back(kObject);
+  }
+  cloud.normals.resize(cloud.size(), Vec3f::UnitZ());
+  const KdTree tree(cloud.points);
+  const GripperConfig g;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.5 * std::numbers::pi, Vector3d::UnitY()).toRotationMatrix() *
+               Eigen::AngleAxisd(0.3, Vector3d::UnitX()).toRotationMatrix();  // approach downwards, tilted
+  T.translation() = Vector3d(0.3, 0.1, 1.0);  // the tips reach the ground
+  const double opening = 0.7 * max_opening(g);
+  Neighbors nb;
+  tree.radius(closing_centre(g, T).cast<float>(), float(closing_reach(g, opening)), nb);
+  LocalPoints a, b;
+  gather_local(cloud, nb.indices, T, g, a, 0.05);
+  gather_local(cloud, tree, T, opening, g, b, 0.05);
+  EXPECT_GT(a.object.size(), 50u);
+  EXPECT_GT(a.environment.size(), 50u);
+  EXPECT_EQ(a.object, b.object);
+  EXPECT_EQ(a.normals, b.normals);
+  EXPECT_EQ(a.environment, b.environment);
 }
 
 /// A box in G: centre (0.5, 0, 0), 0.8 deep along x, 0.6 across (y), 0.4 high (z): the jaws,
