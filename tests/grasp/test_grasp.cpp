@@ -2,6 +2,7 @@
 // closure on a box, ranking order, ground fill, and the whole planner on a box on the ground.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -255,6 +256,35 @@ TEST(PlanningCloud, TheOccludedGroundIsFilledByThePlaneAndNeverInsideTheObject) 
       ASSERT_LT(std::sqrt(d2), cfg.voxel) << q.transpose();
     }
   EXPECT_GT(pc.object_points, 200u);
+}
+
+// Normals (Sec. 5.2): on the object outwards from its centroid — a box's face normals on its
+// faces' interiors — and the ground plane's normal on everything else.
+TEST(PlanningCloud, ObjectNormalsPointOutwardsAndTheRestAlongTheGroundNormal) {
+  const BoxOnGround scene;
+  const PlanningCloud pc = build_planning_cloud(scene.map, scene.object, nullptr, GripperConfig{}, PlanningCloudConfig{});
+  ASSERT_TRUE(pc.ground.has_value());
+  ASSERT_EQ(pc.cloud.normals.size(), pc.cloud.size());
+  int faces = 0;
+  for (std::size_t i = 0; i < pc.cloud.size(); ++i) {
+    const Vec3d p = pc.cloud.world(i);
+    const Vec3d n = pc.cloud.normals[i].cast<double>();
+    if (pc.cloud.labels[i] != kObject) {
+      EXPECT_NEAR((n - pc.ground_normal).norm(), 0.0, 1e-6) << p.transpose();
+      continue;
+    }
+    // Inside a face (away from the edges by more than the normal radius): the face's normal.
+    const Vec3d local = p - Vec3d(0, 0, 0.25), half(0.4, 0.3, 0.25);
+    const Vec3d depth = half - local.cwiseAbs();  // distance to each pair of faces
+    int axis = 0;
+    depth.minCoeff(&axis);
+    Vec3d sorted = depth;
+    std::sort(sorted.data(), sorted.data() + 3);
+    if (sorted[1] < 0.2) continue;  // near an edge
+    ++faces;
+    EXPECT_GT(n[axis] * (local[axis] > 0 ? 1.0 : -1.0), 0.95) << p.transpose();
+  }
+  EXPECT_GT(faces, 50);
 }
 
 TEST(Planner, GraspsABoxFromAboveAcrossItsShortSide) {

@@ -166,17 +166,24 @@ Vec3d solid_centroid(const PointCloud& cloud, const Plane& plane, double voxel) 
   return count > 0.0 ? Vec3d(mean / count) : mean;
 }
 
-void orient_normals(PointCloud& cloud, double radius, const Vec3f& object_centroid) {
+void orient_normals(PointCloud& cloud, double radius, const Vec3f& object_centroid, const Vec3f& up) {
   const KdTree tree(cloud.points);
+  std::vector<Vec3f> object;
+  std::vector<std::size_t> where;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (cloud.labels[i] != kObject) continue;
+    object.push_back(cloud.points[i]);
+    where.push_back(i);
+  }
   NormalConfig nc;
   nc.radius = radius;
-  NormalResult r = estimate_normals(cloud.points, tree, nc);
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    Vec3f& n = r.normals[i];
-    const Vec3f out = cloud.labels[i] == kObject ? Vec3f(cloud.points[i] - object_centroid) : Vec3f::UnitZ();
-    if (n.dot(out) < 0) n = -n;
+  const NormalResult r = estimate_normals(object, tree, nc);
+  cloud.normals.assign(cloud.size(), up);
+  for (std::size_t k = 0; k < where.size(); ++k) {
+    Vec3f n = r.normals[k];
+    if (n.dot(object[k] - object_centroid) < 0) n = -n;
+    cloud.normals[where[k]] = n;
   }
-  cloud.normals = std::move(r.normals);
 }
 
 PlanningCloud build_planning_cloud(const PointCloud& map, const PointCloud& object, const PointCloud* drone,
@@ -203,7 +210,7 @@ PlanningCloud build_planning_cloud(const PointCloud& map, const PointCloud& obje
   // Columns down to the ground fill the space under a rounded stone's belly (too low); the
   // surface points lie on its top and sides (too high): the height between the two.
   pc.mass_centroid.z() = 0.5 * (pc.mass_centroid.z() + pc.centroid.z());
-  orient_normals(pc.cloud, c.normal_radius_voxels * c.voxel, Vec3f::Zero());
+  orient_normals(pc.cloud, c.normal_radius_voxels * c.voxel, Vec3f::Zero(), pc.ground_normal.cast<float>());
   for (const std::int32_t l : pc.cloud.labels) (l == kObject ? pc.object_points : pc.environment_points) += 1;
   pc.environment_points -= pc.fill_points;
   return pc;

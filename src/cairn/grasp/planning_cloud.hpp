@@ -18,8 +18,8 @@ namespace cairn::grasp {
 enum PointKind : std::int32_t { kEnvironment = 0, kObject = 1, kGroundFill = 2 };
 
 struct PlanningCloud {
-  /// Points relative to `cloud.origin` (the object's centroid), normals (outwards on the object,
-  /// upwards elsewhere), labels = PointKind.
+  /// Points relative to `cloud.origin` (the object's centroid), normals (PCA, outwards on the
+  /// object; the ground plane's normal elsewhere), labels = PointKind.
   PointCloud cloud;
   Vec3d centroid = Vec3d::Zero();  // the object's model centroid (map frame)
   /// The object's centre of mass estimated as a solid: the columns from the ground plane up to the
@@ -52,8 +52,9 @@ std::size_t fill_ground(PointCloud& cloud, const Plane& plane, double voxel);
 /// The solid's centroid of the object points of `cloud` standing on `plane` (same frame).
 [[nodiscard]] Vec3d solid_centroid(const PointCloud& cloud, const Plane& plane, double voxel);
 
-/// Normals on a labelled cloud: PCA over `radius`, oriented away from `object_centroid` (same
-/// frame) on object points and upwards elsewhere.
-void orient_normals(PointCloud& cloud, double radius, const Vec3f& object_centroid);
+/// Normals on a labelled cloud: on object points PCA over `radius` (neighbours among all points),
+/// oriented away from `object_centroid` (same frame); elsewhere `up` (the planner reads only the
+/// object's normals: the environment is only ever collided with).
+void orient_normals(PointCloud& cloud, double radius, const Vec3f& object_centroid, const Vec3f& up);
 
 }  // namespace cairn::grasp
