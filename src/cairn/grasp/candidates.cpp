@@ -122,22 +122,45 @@ struct SampleContext {
   std::vector<Matrix3d> vertical;  // the vertical orientations (the same for every sample)
 };
 
-/// The collision points around one sample (relative to it) and the fixed settings of its poses.
+/// The collision points around one sample (relative to it, coordinate by coordinate) and the
+/// fixed settings of its poses.
 struct SampleNeighbourhood {
-  Vector3d p;                 // the sample point
-  std::vector<Vec3f> around;  // collision points relative to p
-  std::vector<bool> object;   // ... which lie on the object
-  double start = 0.0;         // the push starts with the palm this far before p
+  Vector3d p;                        // the sample point
+  std::vector<float> ax, ay, az;     // collision points relative to p
+  std::vector<bool> object;          // ... which lie on the object
+  double start = 0.0;                // the push starts with the palm this far before p
 };
+
+/// The neighbourhood's points along the axes of one orientation (R^T d, d relative to the sample):
+/// computed once per orientation for the fitted opening and every opening's push.
+struct RotatedNeighbourhood {
+  std::vector<float> x, y, z;
+};
+
+void rotate(const SampleNeighbourhood& n, const Eigen::Matrix3f& Rt, RotatedNeighbourhood& out) {
+  const std::size_t size = n.ax.size();
+  out.x.resize(size);
+  out.y.resize(size);
+  out.z.resize(size);
+  const auto axis = [&](int r, std::vector<float>& to) {
+    const float a = Rt(r, 0), b = Rt(r, 1), c = Rt(r, 2);
+    // Rt.row(r).dot(d) as Eigen 3.4 sums a fixed 3-vector: a dx + (b dy + c dz).
+    for (std::size_t k = 0; k < size; ++k) to[k] = a * n.ax[k] + (b * n.ay[k] + c * n.az[k]);
+  };
+  axis(0, out.x);
+  axis(1, out.y);
+  axis(2, out.z);
+}
 
 /// The opening that clears the object's points in the jaws' band (|z| <= jaw height / 2) across
 /// the approach axis by the padding on both sides (GPD's hand is fixed; an angular gripper's
 /// pre-grasp opening is free).
-double fitted_opening(const SampleNeighbourhood& n, const Eigen::Matrix3f& Rt, const GripperConfig& g, double padding) {
+double fitted_opening(const SampleNeighbourhood& n, const RotatedNeighbourhood& r, const GripperConfig& g, double padding) {
   float half = 0.0f;
-  for (std::size_t k = 0; k < n.around.size(); ++k) {
-    if (!n.object[k] || std::abs(Rt.row(2).dot(n.around[k])) > float(0.5 * g.jaw_height)) continue;
-    half = std::max(half, std::abs(Rt.row(1).dot(n.around[k])));
+  const float band = float(0.5 * g.jaw_height);
+  for (std::size_t k = 0; k < r.z.size(); ++k) {
+    if (!n.object[k] || std::abs(r.z[k]) > band) continue;
+    half = std::max(half, std::abs(r.y[k]));
   }
   return std::clamp(2.0 * (double(half) + padding), opening_at(g, min_jaw_angle(g)), max_opening(g));
 }
@@ -175,18 +198,16 @@ void close_with_backoff(const SampleContext& ctx, const Isometry3d& T, double op
   counts.hypotheses += hypothesis ? 1 : 0;
 }
 
-/// The collision points of one sample in G at the push's start for one orientation R, those
-/// beside `lateral` (|y|, |z|) dropped: they can never be touched.
-std::vector<Vector3d> start_points(const SampleNeighbourhood& n, const Matrix3d& R, const Eigen::Vector2d& lateral) {
-  const Eigen::Matrix3f Rt = R.transpose().cast<float>();
+/// The collision points of one sample in G at the push's start for one orientation (rotated:
+/// the neighbourhood along its axes), those beside `lateral` (|y|, |z|) dropped: they can never
+/// be touched.
+std::vector<Vector3d> start_points(const SampleNeighbourhood& n, const RotatedNeighbourhood& r,
+                                   const Eigen::Vector2d& lateral) {
   const float x0 = float(n.start), y_max = float(lateral.x()), z_max = float(lateral.y());
   std::vector<Vector3d> out;
-  for (const Vec3f& d : n.around) {
-    const float y = Rt.row(1).dot(d);
-    if (std::abs(y) > y_max) continue;
-    const float z = Rt.row(2).dot(d);
-    if (std::abs(z) > z_max) continue;
-    out.emplace_back(double(Rt.row(0).dot(d) + x0), double(y), double(z));
+  for (std::size_t k = 0; k < r.z.size(); ++k) {
+    if (std::abs(r.z[k]) > z_max || std::abs(r.y[k]) > y_max) continue;
+    out.emplace_back(double(r.x[k] + x0), double(r.y[k]), double(r.z[k]));
   }
   return out;
 }
@@ -234,18 +255,23 @@ void sample_candidates(const SampleContext& ctx, std::uint32_t sample, std::vect
   const double reach = part_reach(gripper_parts(ctx.gripper, max_opening(ctx.gripper)));  // the widest
   ctx.coarse_tree.radius(cloud.points[sample], float(n.start + reach + 2.0 * padding), nb);
   for (const std::uint32_t i : nb.indices) {
-    n.around.push_back(ctx.coarse[i] - cloud.points[sample]);
+    const Vec3f d = ctx.coarse[i] - cloud.points[sample];
+    n.ax.push_back(d.x());
+    n.ay.push_back(d.y());
+    n.az.push_back(d.z());
     n.object.push_back(ctx.coarse_labels[i] == kObject);
   }
   std::vector<Matrix3d> rotations = orientations(F, cc);
   rotations.insert(rotations.end(), ctx.vertical.begin(), ctx.vertical.end());
+  RotatedNeighbourhood rotated;
   for (const Matrix3d& R : rotations) {
+    rotate(n, R.transpose().cast<float>(), rotated);
     std::vector<double> openings;
     for (const double share : cc.openings) openings.push_back(share * max_opening(ctx.gripper));
-    if (cc.fit_opening) openings.push_back(fitted_opening(n, R.transpose().cast<float>(), ctx.gripper, padding));
+    if (cc.fit_opening) openings.push_back(fitted_opening(n, rotated, ctx.gripper, padding));
     Eigen::Vector2d widest = Eigen::Vector2d::Zero();
     for (const double o : openings) widest = widest.cwiseMax(lateral_extent(gripper_parts(ctx.gripper, o)));
-    const std::vector<Vector3d> start_G = start_points(n, R, widest + Eigen::Vector2d::Constant(padding));
+    const std::vector<Vector3d> start_G = start_points(n, rotated, widest + Eigen::Vector2d::Constant(padding));
     for (const double o : openings) try_pose(ctx, n, R, o, start_G, out, counts);
   }
 }
