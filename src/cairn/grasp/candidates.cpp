@@ -212,13 +212,14 @@ std::vector<Vector3d> start_points(const SampleNeighbourhood& n, const RotatedNe
   return out;
 }
 
-/// One orientation at one pre-grasp opening: pushed, then closed (Sec. 5.3). `start_G`: the
-/// orientation's start_points for a lateral extent at least this opening's.
+/// One orientation at one pre-grasp opening (`parts`: the gripper at it): pushed, then closed
+/// (Sec. 5.3). `start_G`: the orientation's start_points for a lateral extent at least this
+/// opening's.
 void try_pose(const SampleContext& ctx, const SampleNeighbourhood& n, const Matrix3d& R, double opening,
-              std::span<const Vector3d> start_G, std::vector<Candidate>& out, CandidateCounts& counts) {
+              const std::vector<ConvexPart>& parts, std::span<const Vector3d> start_G, std::vector<Candidate>& out,
+              CandidateCounts& counts) {
   const CandidateConfig& cc = ctx.config.candidates;
   const double voxel = ctx.config.cloud.voxel, padding = cc.padding_voxels * voxel;
-  const std::vector<ConvexPart> parts = gripper_parts(ctx.gripper, opening);
   const std::vector<SweptBox> boxes = swept_boxes(parts, padding);
   const Eigen::Vector2d lateral = lateral_extent(parts) + Eigen::Vector2d::Constant(padding);
   ++counts.poses;
@@ -269,10 +270,14 @@ void sample_candidates(const SampleContext& ctx, std::uint32_t sample, std::vect
     std::vector<double> openings;
     for (const double share : cc.openings) openings.push_back(share * max_opening(ctx.gripper));
     if (cc.fit_opening) openings.push_back(fitted_opening(n, rotated, ctx.gripper, padding));
+    std::vector<std::vector<ConvexPart>> parts;  // the gripper at each opening
     Eigen::Vector2d widest = Eigen::Vector2d::Zero();
-    for (const double o : openings) widest = widest.cwiseMax(lateral_extent(gripper_parts(ctx.gripper, o)));
+    for (const double o : openings) {
+      parts.push_back(gripper_parts(ctx.gripper, o));
+      widest = widest.cwiseMax(lateral_extent(parts.back()));
+    }
     const std::vector<Vector3d> start_G = start_points(n, rotated, widest + Eigen::Vector2d::Constant(padding));
-    for (const double o : openings) try_pose(ctx, n, R, o, start_G, out, counts);
+    for (std::size_t i = 0; i < openings.size(); ++i) try_pose(ctx, n, R, openings[i], parts[i], start_G, out, counts);
   }
 }
 
