@@ -258,6 +258,37 @@ TEST(PlanningCloud, TheOccludedGroundIsFilledByThePlaneAndNeverInsideTheObject) 
   EXPECT_GT(pc.object_points, 200u);
 }
 
+// Undulating ground (8 cm waves, inside RANSAC's 10 cm band: one plane for all of it), unseen
+// within 1.2 m of the box: the fill follows the seen ground next to it, the plane alone does not.
+TEST(PlanningCloud, TheFillFollowsTheSeenGroundNextToIt) {
+  const auto terrain = [](double x, double y) { return 0.08 * std::sin(1.3 * x + 0.4) * std::cos(0.9 * y); };
+  BoxOnGround scene(/*hole=*/1.2);
+  for (Vec3f& p : scene.map.points)
+    if (p.z() == 0.0f) p.z() = float(terrain(p.x(), p.y()));
+  PlanningCloudConfig plane_only;
+  plane_only.fill_follows_ground = false;
+  const auto fill_error = [&](const PlanningCloudConfig& cfg, double within) {  // mean |z - terrain|
+    const PlanningCloud pc = build_planning_cloud(scene.map, scene.object, nullptr, GripperConfig{}, cfg);
+    double sum = 0.0;
+    int n = 0;
+    for (std::size_t i = 0; i < pc.cloud.size(); ++i) {
+      const Vec3d p = pc.cloud.world(i);
+      if (pc.cloud.labels[i] != kGroundFill || std::hypot(p.x(), p.y()) < 1.2 - within) continue;
+      sum += std::abs(p.z() - terrain(p.x(), p.y()));
+      ++n;
+    }
+    EXPECT_GT(n, 100);
+    return sum / n;
+  };
+  const double plane_all = fill_error(plane_only, 1.2), follow_all = fill_error(PlanningCloudConfig{}, 1.2);
+  const double plane_rim = fill_error(plane_only, 0.25), follow_rim = fill_error(PlanningCloudConfig{}, 0.25);
+  std::printf("fill's mean height error: plane %.3f m (rim %.3f), following %.3f m (rim %.3f)\n", plane_all, plane_rim,
+              follow_all, follow_rim);
+  EXPECT_GT(plane_all, 0.02);
+  EXPECT_LT(follow_all, 0.6 * plane_all);
+  EXPECT_LT(follow_rim, 0.015);  // next to the seen ground: its height
+}
+
 // Normals (Sec. 5.2): on the object outwards from its centroid — a box's face normals on its
 // faces' interiors — and the ground plane's normal on everything else.
 TEST(PlanningCloud, ObjectNormalsPointOutwardsAndTheRestAlongTheGroundNormal) {

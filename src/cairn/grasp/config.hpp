@@ -18,6 +18,9 @@ struct PlanningCloudConfig {
   /// Map points within this many voxels of the object's model are the object's points.
   double object_distance_voxels = 1.5;
   bool ground_fill = true;  // fill unobserved ground with points of a RANSAC ground plane (Fig. 6c)
+  /// Beyond the paper: the fill follows the seen ground next to it (its height above the plane
+  /// carried into the unseen columns) instead of lying on the plane.
+  bool fill_follows_ground = true;
   double ground_distance = 0.10;  // [m] RANSAC inlier distance (Table 3's d_plane)
   double ground_max_tilt_deg = 30.0;  // the ground plane is within this of horizontal
   /// Normals: PCA over this many voxels' radius, oriented away from the object's centroid on the
@@ -30,6 +33,7 @@ struct PlanningCloudConfig {
     v("voxel", voxel, "uniform density of the planning cloud [m]");
     v("object_distance_voxels", object_distance_voxels, "map points this many voxels from the model are object points");
     v("ground_fill", ground_fill, "fill unobserved ground with a RANSAC ground plane");
+    v("fill_follows_ground", fill_follows_ground, "the fill follows the seen ground next to it (else: on the plane)");
     v("ground_distance", ground_distance, "RANSAC ground plane inlier distance [m] (Table 3 d_plane)");
     v("ground_max_tilt_deg", ground_max_tilt_deg, "largest tilt of the ground plane [deg]");
     v("normal_radius_voxels", normal_radius_voxels, "normal estimation radius in voxels");

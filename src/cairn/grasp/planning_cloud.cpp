@@ -101,33 +101,85 @@ double gripper_full_width(const GripperConfig& g) {
   return std::max({g.palm_width, jaws, g.hinge_spacing + 2.0 * g.jaw_thickness});
 }
 
-std::size_t fill_ground(PointCloud& cloud, const Plane& plane, double voxel) {
+namespace {
+
+/// Per voxel-sized column of the fill grid: what was seen there.
+struct FillCell {
+  bool environment = false;
+  float object_z = std::numeric_limits<float>::max();
+  double residual = 0.0;  // the seen ground's mean height above the plane (ground points only)
+  int ground = 0;         // seen ground points (environment within the band of the plane)
+  bool known = false;     // residual known: seen ground, or propagated from it
+};
+
+/// Carries the seen ground's height above the plane into the columns nobody saw, ring by ring
+/// from the seen ones (each new column the mean of its known 8-neighbours): the fill follows the
+/// terrain next to it instead of the plane, which undulating ground leaves by up to its band.
+void propagate_residuals(std::vector<FillCell>& cells, std::size_t nx, std::size_t ny) {
+  const auto for_neighbours = [&](std::size_t k, auto&& f) {
+    const std::size_t ix = k % nx, iy = k / nx;
+    for (std::size_t y = iy > 0 ? iy - 1 : 0; y <= std::min(ny - 1, iy + 1); ++y)
+      for (std::size_t x = ix > 0 ? ix - 1 : 0; x <= std::min(nx - 1, ix + 1); ++x)
+        if (y * nx + x != k) f(y * nx + x);
+  };
+  std::vector<std::uint8_t> queued(cells.size(), 0);
+  std::vector<std::size_t> ring, next;
+  for (std::size_t k = 0; k < cells.size(); ++k) {
+    cells[k].known = cells[k].ground > 0;
+    queued[k] = cells[k].known;
+  }
+  for (std::size_t k = 0; k < cells.size(); ++k)  // the first ring: unknown next to seen ground
+    if (cells[k].known) for_neighbours(k, [&](std::size_t j) { if (!queued[j]) queued[j] = 1, ring.push_back(j); });
+  std::vector<double> value;
+  while (!ring.empty()) {
+    value.assign(ring.size(), 0.0);
+    for (std::size_t r = 0; r < ring.size(); ++r) {
+      double sum = 0.0;
+      int n = 0;
+      for_neighbours(ring[r], [&](std::size_t j) { if (cells[j].known) sum += cells[j].residual, ++n; });
+      value[r] = sum / n;  // n > 0: a ring cell borders a known one
+    }
+    next.clear();
+    for (std::size_t r = 0; r < ring.size(); ++r) {
+      cells[ring[r]].residual = value[r];
+      cells[ring[r]].known = true;
+      for_neighbours(ring[r], [&](std::size_t j) { if (!queued[j]) queued[j] = 1, next.push_back(j); });
+    }
+    ring.swap(next);
+  }
+}
+
+}  // namespace
+
+std::size_t fill_ground(PointCloud& cloud, const Plane& plane, double voxel, double follow_band) {
   if (cloud.empty() || std::abs(plane.normal.z()) < 1e-3f) return 0;
   const Aabb box = bounds(cloud.points);
   const auto nx = std::size_t(std::floor((box.max.x() - box.min.x()) / voxel)) + 1;
   const auto ny = std::size_t(std::floor((box.max.y() - box.min.y()) / voxel)) + 1;
-  struct Cell {
-    bool environment = false;
-    float object_z = std::numeric_limits<float>::max();
-  };
-  std::vector<Cell> cells(nx * ny);
+  std::vector<FillCell> cells(nx * ny);
   auto cell_of = [&](const Vec3f& p) {
     const auto ix = std::min(nx - 1, std::size_t((p.x() - box.min.x()) / voxel));
     const auto iy = std::min(ny - 1, std::size_t((p.y() - box.min.y()) / voxel));
     return iy * nx + ix;
   };
   for (std::size_t i = 0; i < cloud.size(); ++i) {
-    Cell& c = cells[cell_of(cloud.points[i])];
-    if (cloud.labels[i] == kObject) c.object_z = std::min(c.object_z, cloud.points[i].z());
-    else c.environment = true;
+    FillCell& c = cells[cell_of(cloud.points[i])];
+    if (cloud.labels[i] == kObject) {
+      c.object_z = std::min(c.object_z, cloud.points[i].z());
+      continue;
+    }
+    c.environment = true;
+    const double r = plane.signed_distance(cloud.points[i]);
+    if (std::abs(r) <= follow_band) c.residual += (r - c.residual) / ++c.ground;  // running mean
   }
+  if (follow_band > 0.0) propagate_residuals(cells, nx, ny);
   std::size_t added = 0;
   for (std::size_t iy = 0; iy < ny; ++iy) {
     for (std::size_t ix = 0; ix < nx; ++ix) {
-      const Cell& c = cells[iy * nx + ix];
+      const FillCell& c = cells[iy * nx + ix];
       if (c.environment) continue;
       const float x = box.min.x() + float((double(ix) + 0.5) * voxel), y = box.min.y() + float((double(iy) + 0.5) * voxel);
-      const float z = -(plane.normal.x() * x + plane.normal.y() * y + plane.d) / plane.normal.z();
+      const float z = (float(c.residual) - (plane.normal.x() * x + plane.normal.y() * y + plane.d)) / plane.normal.z();
       if (z > c.object_z - float(voxel)) continue;  // the object rests here: no ground inside it
       cloud.points.emplace_back(x, y, z);
       cloud.labels.push_back(kGroundFill);
@@ -203,7 +255,8 @@ PlanningCloud build_planning_cloud(const PointCloud& map, const PointCloud& obje
   pc.cloud = voxel_downsample(merged, {.res_voxel = c.voxel, .n_min = 1});
   pc.ground = ground_plane(pc.cloud, c);
   if (pc.ground) {
-    if (c.ground_fill) pc.fill_points = fill_ground(pc.cloud, *pc.ground, c.voxel);
+    if (c.ground_fill)
+      pc.fill_points = fill_ground(pc.cloud, *pc.ground, c.voxel, c.fill_follows_ground ? c.ground_distance : 0.0);
     pc.ground_normal = pc.ground->normal.cast<double>();
   }
   pc.mass_centroid = pc.ground ? pc.cloud.origin + solid_centroid(pc.cloud, *pc.ground, c.voxel) : pc.centroid;

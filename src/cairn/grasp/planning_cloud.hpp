@@ -43,11 +43,13 @@ struct PlanningCloud {
                                                  const PointCloud* drone, const GripperConfig& gripper,
                                                  const PlanningCloudConfig& config);
 
-/// Fills the ground where `cloud` saw none (Fig. 6c): one point of `plane` per voxel-sized cell of
-/// the cloud's horizontal extent that holds no environment point; under object points only where
-/// the plane lies a voxel below the object's lowest point of that cell. Appends kGroundFill
+/// Fills the ground where `cloud` saw none (Fig. 6c): one point per voxel-sized cell of the
+/// cloud's horizontal extent that holds no environment point; under object points only where the
+/// fill lies a voxel below the object's lowest point of that cell. The fill lies on `plane`
+/// raised by the seen ground's height above it, carried from the nearest seen columns
+/// (environment points within `follow_band` of the plane; 0: on the plane). Appends kGroundFill
 /// points; returns how many.
-std::size_t fill_ground(PointCloud& cloud, const Plane& plane, double voxel);
+std::size_t fill_ground(PointCloud& cloud, const Plane& plane, double voxel, double follow_band = 0.0);
 
 /// The solid's centroid of the object points of `cloud` standing on `plane` (same frame).
 [[nodiscard]] Vec3d solid_centroid(const PointCloud& cloud, const Plane& plane, double voxel);
