@@ -100,6 +100,7 @@ TEST(Experiment, Exp1RegistersPlansGraspsAndDetectsEveryFailure) {
   c.inject_friction = 0.02;  // the first grasp cannot hold its stone: detected, then tried again
   c.inject_move = 1;
   const ExperimentResult r = run_experiment(c);
+  for (const std::string& n : r.notes) std::printf("note: %s\n", n.c_str());
   const nlohmann::json j = to_json(r);
   for (const char* key : {"experiment", "seed", "registration", "grasps", "rounds", "timings_ms"})
     EXPECT_TRUE(j.contains(key)) << key;

@@ -265,8 +265,9 @@ TEST(PlanningCloud, TheFillFollowsTheSeenGroundNextToIt) {
   BoxOnGround scene(/*hole=*/1.2);
   for (Vec3f& p : scene.map.points)
     if (p.z() == 0.0f) p.z() = float(terrain(p.x(), p.y()));
-  PlanningCloudConfig plane_only;
+  PlanningCloudConfig plane_only, following;
   plane_only.fill_follows_ground = false;
+  following.fill_follows_ground = true;
   const auto fill_error = [&](const PlanningCloudConfig& cfg, double within) {  // mean |z - terrain|
     const PlanningCloud pc = build_planning_cloud(scene.map, scene.object, nullptr, GripperConfig{}, cfg);
     double sum = 0.0;
@@ -280,8 +281,8 @@ TEST(PlanningCloud, TheFillFollowsTheSeenGroundNextToIt) {
     EXPECT_GT(n, 100);
     return sum / n;
   };
-  const double plane_all = fill_error(plane_only, 1.2), follow_all = fill_error(PlanningCloudConfig{}, 1.2);
-  const double plane_rim = fill_error(plane_only, 0.25), follow_rim = fill_error(PlanningCloudConfig{}, 0.25);
+  const double plane_all = fill_error(plane_only, 1.2), follow_all = fill_error(following, 1.2);
+  const double plane_rim = fill_error(plane_only, 0.25), follow_rim = fill_error(following, 0.25);
   std::printf("fill's mean height error: plane %.3f m (rim %.3f), following %.3f m (rim %.3f)\n", plane_all, plane_rim,
               follow_all, follow_rim);
   EXPECT_GT(plane_all, 0.02);
