@@ -35,9 +35,10 @@ std::vector<Vec3f> crop_around(const PointCloud& map, const Vec3d& center, doubl
   return out;
 }
 
-std::string format(const char* fmt, double a, double b) {
-  char buf[160];
-  std::snprintf(buf, sizeof(buf), fmt, a, b);
+template <class... Args>
+std::string format(const char* fmt, Args... args) {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), fmt, args...);
   return buf;
 }
 
@@ -162,8 +163,10 @@ RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map,
     if (f.fitness > best.fitness) best = f;
   }
   if (best.fitness < config.realign.search_min_fitness || best.rmse > config.association.max_rmse) {
-    r.reason += format("; no segment within %.1f m fits its model (best %.0f %% of its points)",
-                       config.realign.search_radius, 100 * best.fitness);
+    r.reason += format("; no segment within %.1f m fits its model (best %.0f %% of its points, min %.0f %%; rmse %.3f m, "
+                       "max %.3f m)",
+                       config.realign.search_radius, 100 * best.fitness, 100 * config.realign.search_min_fitness,
+                       best.rmse, config.association.max_rmse);
     return r;
   }
   if (!best.unambiguous(config.association.ambiguity_margin)) {
