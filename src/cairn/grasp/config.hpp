@@ -20,8 +20,8 @@ struct PlanningCloudConfig {
   bool ground_fill = true;  // fill unobserved ground with points of a RANSAC ground plane (Fig. 6c)
   /// Beyond the paper: the fill follows the seen ground next to it (its height above the plane
   /// carried into the unseen columns) instead of lying on the plane. Off by default: more grasps
-  /// held in the trials (docs/grasp.md), but in the exp1 experiment test the injected slip then
-  /// leaves its stone lost to the rescan instead of retried (not yet understood).
+  /// held in the trials (docs/grasp.md), but in the exp1 experiment test the injected slip's stone
+  /// then falls over and rolls, and the machine gives up on it before re-finding it.
   bool fill_follows_ground = false;
   double ground_distance = 0.10;  // [m] RANSAC inlier distance (Table 3's d_plane)
   double ground_max_tilt_deg = 30.0;  // the ground plane is within this of horizontal
