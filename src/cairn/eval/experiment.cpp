@@ -161,6 +161,7 @@ class Experiment {
   [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
   bool attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target);
   void move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& used);
+  bool search_lost(const std::string& name, int attempts, const Tracker::Tracked& tr);
   void capture_after(int round, int move, int moves);
   [[nodiscard]] Tracker::Tracked* next_off_pile(const std::set<std::int64_t>& picked, int& loaded);
   void score_round(int round, const RoundRecord& rr);
@@ -368,9 +369,9 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   const double bottom = low_z(obj.cloud, 0.02);
   const double dz = ground_height(map, target, bottom) - bottom - c_.place_depth;
   // The stone's centre of mass as the planner estimates it (Sec. 5.2: the planning cloud with
-  // the unseen side completed) goes over the target; the object's visible-points centroid lies
-  // `bias` from it, and that is where the machine expects to see it after the rescan.
-  const Vec2d bias = (p.cloud.mass_centroid - obj.centroid).head<2>();
+  // the unseen side completed) goes over the target; the object's stored motion from here on
+  // carries it, and the rescan checks where it went.
+  const Isometry3d A_before = db_motion(tracker_.db().history(tr.object));
   const Vec2d shift = target - p.cloud.mass_centroid.head<2>();
   const Isometry3d T_MG_place = Eigen::Translation3d(shift.x(), shift.y(), dz) * best.T_map_gripper;
   GraspPlan plan = grasp::to_grasp_plan(best, GraspPlan{});
@@ -415,10 +416,12 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   tracker_.result.moves.push_back(mv);
   g.move = mv;
   g.place_error_m = r.place_error;
-  // The machine's check: the rescanned object at its target.
+  // The machine's check: the estimated centre of mass, carried by the object's stored motion
+  // since planning (grasp, release, re-alignment), at its target.
   const ObjectRecord after = *tracker_.db().object(tr.object);
+  const Isometry3d moved = db_motion(tracker_.db().history(tr.object)) * A_before.inverse();
   const bool at_target = after.status != ObjectStatus::lost &&
-                         (after.centroid.head<2>() + bias - target).norm() <= c_.detection.target_tolerance;
+                         ((moved * p.cloud.mass_centroid).head<2>() - target).norm() <= c_.detection.target_tolerance;
   if (!at_target) g.detection.signs.push_back("not_at_target");
   g.detection.failed = g.detected = !g.detection.signs.empty();
   // Truth (scoring): the stone's centroid in the map's frame against the target.
@@ -450,13 +453,27 @@ void Experiment::move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& 
   ++moves_;
   ++out.moves;
   for (int a = 1; a <= c_.max_attempts; ++a) {
-    if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
-      out.notes.push_back(name + " was lost after attempt " + std::to_string(a - 1));
-      break;
-    }
+    if (tracker_.db().object(tr.object)->status == ObjectStatus::lost && !search_lost(name, a - 1, tr)) break;
     if (attempt(round, a, tr, *target)) break;
   }
   moved_[std::size_t(tr.stone)] = true;
+}
+
+/// A stone the rescan's re-alignment did not find after a failed attempt may have fallen over
+/// or rolled beyond the search radius: the machine re-segments its map, which tries every lost
+/// object's model, every face down, against every segment (objects/association.cpp). True when
+/// the object was found again and can be tried once more.
+bool Experiment::search_lost(const std::string& name, int attempts, const Tracker::Tracked& tr) {
+  const std::string after = name + " was lost after attempt " + std::to_string(attempts);
+  RoundRecord scratch;
+  tracker_.resegment(scratch);
+  if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
+    out.notes.push_back(after + ", and the re-segmented map did not find it");
+    return false;
+  }
+  out.notes.push_back(after + ", found again by re-segmenting the map");
+  ++out.found_again;
+  return true;
 }
 
 void Experiment::run_round(int round) {
@@ -678,7 +695,8 @@ nlohmann::json to_json(const ExperimentResult& r) {
                       {"database", {{"predicted_error_m", x.move.predicted_error_m},
                                     {"predicted_error_deg", x.move.predicted_error_deg},
                                     {"error_m", x.move.error_m}, {"error_deg", x.move.error_deg},
-                                    {"found", x.move.found}, {"reason", x.move.reason},
+                                    {"found", x.move.found}, {"fitness", x.move.fitness}, {"rmse", x.move.rmse},
+                                    {"reason", x.move.reason},
                                     {"ghost_share", x.move.ghost_share}}}});
   nlohmann::json rounds = nlohmann::json::array();
   for (const ExperimentRound& x : r.rounds) {
@@ -707,7 +725,8 @@ nlohmann::json to_json(const ExperimentResult& r) {
           {"summary", {{"moves", r.moves}, {"placed", r.placed}, {"first_attempt_success", r.first_attempt_success},
                        {"within_attempts", r.within_attempts}, {"failures", r.failures},
                        {"failures_detected", r.failures_detected}, {"false_alarms", r.false_alarms},
-                       {"pile_shifts", r.pile_shifts}, {"resegmentations", r.resegmentations}}},
+                       {"pile_shifts", r.pile_shifts}, {"resegmentations", r.resegmentations},
+                       {"found_again", r.found_again}}},
           {"notes", r.notes},
           {"timings_ms", timings_json(r.timings)}};
 }

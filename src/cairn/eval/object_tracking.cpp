@@ -37,7 +37,7 @@ nlohmann::json to_json(const ObjectTrackingResult& r) {
                      {"moved_m", m.moved_m}, {"turned_deg", m.turned_deg}, {"settle_m", m.settle_m},
                      {"settle_deg", m.settle_deg}, {"predicted_error_m", m.predicted_error_m},
                      {"predicted_error_deg", m.predicted_error_deg}, {"error_m", m.error_m},
-                     {"error_deg", m.error_deg}, {"found", m.found}, {"reason", m.reason},
+                     {"error_deg", m.error_deg}, {"found", m.found}, {"fitness", m.fitness}, {"rmse", m.rmse}, {"reason", m.reason},
                      {"removed_sphere", counts(m.sphere)}, {"removed_object_voxels", counts(m.object_voxels)},
                      {"ghost_share", m.ghost_share}, {"map_points", m.map_points}});
   for (const RoundRecord& x : r.rounds)

@@ -74,6 +74,7 @@ struct MoveRecord {
   double predicted_error_m = 0.0, predicted_error_deg = 0.0;  // Eq. 3 alone, before the rescan
   double error_m = 0.0, error_deg = 0.0;        // after re-alignment
   bool found = false;                           // re-alignment accepted
+  double fitness = 0.0, rmse = 0.0;             // of the re-alignment's fit (accepted or not)
   std::string reason;                           // realign's report
   RemovalCounts sphere, object_voxels;          // the two grasp edits on the same map
   double ghost_share = 0.0;  // map points where a moved stone was and no longer is / map points

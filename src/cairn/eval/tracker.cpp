@@ -230,6 +230,8 @@ RealignResult Tracker::rescan_and_realign(MoveRecord& m, const Tracked& tr, doub
   const RealignResult r = relocate_object(*db_->object(tr.object), rescanned, cfg_.objects, cfg_.segmentation);
   (void)db_->commit(realign_operation(*db_->object(tr.object), r, machine_.now()));
   m.found = r.found;
+  m.fitness = r.fitness;
+  m.rmse = r.rmse;
   m.reason = r.reason;
   score(m, tr, E_after, /*predicted=*/false);
   m.ghost_share = ghost_share(rescanned, *after, E_after);
