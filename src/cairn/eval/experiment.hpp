@@ -229,7 +229,7 @@ struct ExperimentResult {
   int failures = 0, failures_detected = 0, false_alarms = 0;  // per attempt, truth vs detection
   int pile_shifts = 0;           // attempts during which a stone not yet moved (another) moved > pile_shift
   int resegmentations = 0;       // pile: the map re-segmented after each move
-  int found_again = 0;           // objects lost after a failed attempt, found by re-segmenting, tried again
+  int found_again = 0;           // objects the rescan's re-alignment lost, found by re-segmenting the map
   ExperimentScene scene;  // for the report (not in the JSON)
 };
 
