@@ -161,7 +161,7 @@ class Experiment {
   [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
   bool attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target);
   void move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& used);
-  bool search_lost(int round, int attempt, const Tracker::Tracked& tr);
+  void search_lost(int round, int attempt, const Tracker::Tracked& tr);
   void capture_after(int round, int move, int moves);
   [[nodiscard]] Tracker::Tracked* next_off_pile(const std::set<std::int64_t>& picked, int& loaded);
   void score_round(int round, const RoundRecord& rr);
@@ -412,7 +412,7 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   tracker_.score(mv, tr, E, /*predicted=*/true);
   sw.lap_ms();
   (void)tracker_.rescan_and_realign(mv, tr, t0 + r.sim_time);
-  if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) (void)search_lost(round, attempt, tr);
+  if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) search_lost(round, attempt, tr);
   realign_ms_ += sw.lap_ms();
   tracker_.result.moves.push_back(mv);
   g.move = mv;
@@ -463,20 +463,19 @@ void Experiment::move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& 
 /// A stone the rescan's re-alignment did not find may have fallen over or rolled beyond its
 /// search radius (or the re-alignment refused a fit at its target): the machine re-segments its
 /// map, which tries every lost object's model, every face down, against every segment
-/// (objects/association.cpp). True when the object was found again: its pose is then checked
-/// against the target, and when not there it can be tried once more.
-bool Experiment::search_lost(int round, int attempt, const Tracker::Tracked& tr) {
+/// (objects/association.cpp). Found again, its pose is then checked against the target, and
+/// when not there it can be tried once more.
+void Experiment::search_lost(int round, int attempt, const Tracker::Tracked& tr) {
   const std::string after = "round " + std::to_string(round) + ": object " + std::to_string(tr.object) +
                             " was lost after attempt " + std::to_string(attempt);
   RoundRecord scratch;
   tracker_.resegment(scratch);
   if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) {
     out.notes.push_back(after + ", and the re-segmented map did not find it");
-    return false;
+    return;
   }
   out.notes.push_back(after + ", found again by re-segmenting the map");
   ++out.found_again;
-  return true;
 }
 
 void Experiment::run_round(int round) {
