@@ -213,8 +213,10 @@ TEST(ObjectAssociation, MatchedMovedNewAndVanished) {
 
 // A stone lost after a failed grasp may have fallen over and rolled far (issue #18: the slipped
 // stone of exp1 was found "moved 1.24 m, turned 78.1 deg"): the re-segmentation tries a lost
-// object's model with every face down and at any distance, and finds it again on its side. The
-// same stone not marked lost is only searched upright within search_radius: not found.
+// object's model at any distance (and from every face down) and finds it again, here stood on its
+// end. The same stone not marked lost is searched for only within search_radius: not found.
+// (The 90-degree turn is reached by ICP from the 8 upright yaws too: this test proves the lost
+// object's unlimited search distance, not the face-down starts.)
 TEST(ObjectAssociation, ALostStoneThatRolledOntoItsSideIsFoundAgain) {
   // An egg (one end longer: no symmetry), seen from all sides, stood on its blunt end.
   PointCloud s = test::ellipsoid(Vec3d(0, 0, 0.25), Vec3d(0.35, 0.3, 0.25));
