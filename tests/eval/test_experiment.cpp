@@ -104,6 +104,7 @@ TEST(Experiment, Exp1RegistersPlansGraspsAndDetectsEveryFailure) {
   const nlohmann::json j = to_json(r);
   for (const char* key : {"experiment", "seed", "registration", "grasps", "rounds", "timings_ms"})
     EXPECT_TRUE(j.contains(key)) << key;
+  std::printf("timings [ms]: %s\n", j.at("timings_ms").dump().c_str());
   ASSERT_EQ(r.rounds.size(), 1u);
   ASSERT_FALSE(r.grasps.empty());
   {
@@ -197,6 +198,7 @@ TEST(Experiment, PileIsClearedOneStoneAtATimeReSegmentingAfterEveryMove) {
   }
   EXPECT_EQ(r.pile_shifts, shifts);
   const nlohmann::json j = to_json(r);
+  std::printf("timings [ms]: %s\n", j.at("timings_ms").dump().c_str());
   EXPECT_EQ(j.at("summary").at("pile_shifts").get<int>(), r.pile_shifts);
   EXPECT_EQ(j.at("summary").at("resegmentations").get<int>(), r.resegmentations);
   EXPECT_TRUE(j.at("grasps").at(0).contains("others_moved_m"));

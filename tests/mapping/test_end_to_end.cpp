@@ -113,21 +113,18 @@ class MappingEndToEnd : public ::testing::TestWithParam<std::pair<std::string, s
 
 TEST_P(MappingEndToEnd, TrajectoryMapSelfFilterAndDeskewAgainstTruth) {
   const auto& [scenario, seed] = GetParam();
-#if defined(__SANITIZE_ADDRESS__)
   // The sanitizers run the path once (exp1, without the smoothing and de-skew ablations); the
   // figures of both scenarios and the ablations are asserted in Release.
-  constexpr bool kSanitized = true;
-  if (scenario != "exp1") GTEST_SKIP() << "exp1 covers this path under the sanitizers";
-#else
-  constexpr bool kSanitized = false;
-#endif
+  using test::kSanitized;
+  if (kSanitized && scenario != "exp1") GTEST_SKIP() << "exp1 covers this path under the sanitizers";
   const fs::path& dir = simulated_run(scenario, seed);
-  const io::RunDirectory run = io::open_run_directory(dir);
+  io::RunDirectory run = io::open_run_directory(dir);
+  test::shorten_under_sanitizers(run, 8.0);  // the figures below hold on the whole 20 s run
   const std::vector<StampedPose> truth = io::read_stamped_poses(run.truth_dir() / "cabin_poses.tum");
 
   MappingConfig tuned;
   const MapRunResult r = map_run(run, tuned);
-  ASSERT_GT(r.stats.nodes, 100u);
+  ASSERT_GT(r.stats.nodes, kSanitized ? 40u : 100u);
   ASSERT_GT(r.map.size(), 10000u);
   const TrajectoryError raw = trajectory_error(r.raw_trajectory, truth);
   const TrajectoryError mapped = trajectory_error(r.trajectory, truth);
@@ -142,8 +139,10 @@ TEST_P(MappingEndToEnd, TrajectoryMapSelfFilterAndDeskewAgainstTruth) {
   EXPECT_LT(mapped.ate_rmse_without_mean, raw.ate_rmse_without_mean);
   // 20 s runs: the mean GNSS bias over the run (1.6 cm on exp1, seed 1) is unobservable; see
   // docs/mapping.md. Measured: exp1 2.11 cm (raw 3.03), exp2 1.65 cm (raw 2.75).
-  EXPECT_LT(mapped.ate_rmse, 0.022);
-  EXPECT_LT(mapped.ate_rmse_without_mean, 0.015);  // measured 1.33 / 1.25 cm
+  if (!kSanitized) {
+    EXPECT_LT(mapped.ate_rmse, 0.022);
+    EXPECT_LT(mapped.ate_rmse_without_mean, 0.015);  // measured 1.33 / 1.25 cm
+  }
 
   const TrueSurface surface(run.truth_dir());
   const MapAccuracy acc = map_accuracy(r.map, surface);
@@ -171,9 +170,9 @@ TEST_P(MappingEndToEnd, TrajectoryMapSelfFilterAndDeskewAgainstTruth) {
               scenario.c_str(), 100 * acc_plain.within_2cm, 100 * acc_plain_shape.within_2cm, acc_plain.median);
   // Measured (quadratic MLS smoothing): exp1 74.4 % absolute (its mean GNSS bias is -1.6 cm in
   // z), 96.8 % without it; exp2 95.2 % / 95.4 %.
-  EXPECT_GT(acc.within_2cm, 0.7);         // absolute: includes the run's mean GNSS bias
-  EXPECT_GT(acc_shape.within_2cm, 0.94);  // shape
   if (!kSanitized) {
+    EXPECT_GT(acc.within_2cm, 0.7);         // absolute: includes the run's mean GNSS bias
+    EXPECT_GT(acc_shape.within_2cm, 0.94);  // shape
     EXPECT_GT(acc.within_2cm, acc_plain.within_2cm);
   }
 
@@ -261,11 +260,9 @@ INSTANTIATE_TEST_SUITE_P(Scenarios, MappingLongRun,
 // Short runs (8 s, three seeds): mapping must never make the trajectory worse than the state
 // estimate it starts from, although few loop closures exist yet (first after 4 s).
 TEST(MappingShortRun, MappedNeverWorseThanRaw) {
-#if defined(__SANITIZE_ADDRESS__)
-  const std::vector<std::uint64_t> seeds{1};  // the sanitizers run the path once
-#else
+  if (test::kSanitized) GTEST_SKIP() << "a figure over seeds; MappingEndToEnd/exp1 runs map_run and trajectory_error "
+                                        "on an 8 s exp1 run under the sanitizers";
   const std::vector<std::uint64_t> seeds{1, 2, 3};
-#endif
   for (const std::uint64_t seed : seeds) {
     const io::RunDirectory run = io::open_run_directory(simulated_run("exp1", seed, 8.0));
     const std::vector<StampedPose> truth = io::read_stamped_poses(run.truth_dir() / "cabin_poses.tum");
@@ -303,7 +300,8 @@ TEST(MappingRunDirectory, MissingFilesAreInputErrors) {
 // the first window's GNSS/INS priors put it; reoptimize() lets every prior so far pull the whole
 // trajectory (and the rebuilt map) to their mean, and mapping goes on from there.
 TEST(MappingStreaming, ReoptimizeMidStreamFollowsTheMeanOfThePriors) {
-  const io::RunDirectory run = io::open_run_directory(simulated_run("exp1", 1));
+  io::RunDirectory run = io::open_run_directory(simulated_run("exp1", 1));
+  test::shorten_under_sanitizers(run, 4.0);  // the path on 4 s; the figures on 20 s in Release
   const std::vector<StampedPose> truth = io::read_stamped_poses(run.truth_dir() / "cabin_poses.tum");
   MappingConfig cfg;
   cfg.local_map.smoothing_radius = 0.0;  // the poses do not depend on the snapshot
@@ -337,14 +335,18 @@ TEST(MappingStreaming, ReoptimizeMidStreamFollowsTheMeanOfThePriors) {
               "points, shape within 2 cm %.1f -> %.1f %%, median %.1f -> %.1f mm\n",
               1e3 * gap_windowed, 1e3 * gap_full, map_before.size(), map_after.size(), 100 * shape_before.within_2cm,
               100 * shape_after.within_2cm, 1e3 * shape_before.median, 1e3 * shape_after.median);
-  EXPECT_LT(gap_full, 0.5 * gap_windowed);
-  EXPECT_LT(gap_full, 0.005);
+  if (!test::kSanitized) {
+    EXPECT_LT(gap_full, 0.5 * gap_windowed);
+    EXPECT_LT(gap_full, 0.005);
+  }
   // The rebuilt map holds the same scans with the same crops (every crop_every nodes, none at
   // the end: a stone at the edge of R_map keeps its far side, as when streaming), each at its new
   // pose where the windowed map kept the pose it had when inserted: as many voxels, and a shape
   // at least as accurate.
   EXPECT_NEAR(double(map_after.size()), double(map_before.size()), 0.01 * double(map_before.size()));
-  EXPECT_GE(shape_after.within_2cm, shape_before.within_2cm);
+  if (!test::kSanitized) {
+    EXPECT_GE(shape_after.within_2cm, shape_before.within_2cm);
+  }
   // Mapping goes on from the moved trajectory (the submaps built before are still matched) and
   // ends as accurate as a run that never reoptimised.
   for (std::size_t k = half; k < run.scans.size(); ++k) {
@@ -352,9 +354,7 @@ TEST(MappingStreaming, ReoptimizeMidStreamFollowsTheMeanOfThePriors) {
     mapper.add_sweep(s.sensor, run.read_scan(s), s.t_start, s.t_end);
   }
   mapper.finish();
-#if defined(__SANITIZE_ADDRESS__)
-  return;  // the comparison with a second, plain run is a figure (Release); its path is the same
-#endif
+  if (test::kSanitized) return;  // the comparison with a plain run is a figure; its path is the same
   const MapRunResult plain = map_run(run, cfg);
   const TrajectoryError with = trajectory_error(mapper.trajectory(), truth);
   const TrajectoryError without = trajectory_error(plain.trajectory, truth);
@@ -367,7 +367,8 @@ TEST(MappingStreaming, ReoptimizeMidStreamFollowsTheMeanOfThePriors) {
 // An edit made early moves with the node that was newest then when a later reoptimisation moves
 // the trajectory (an inserted cloud stays on the surfaces it was placed against).
 TEST(MappingStreaming, EditsMoveWithTheirNodeInARebuild) {
-  const io::RunDirectory run = io::open_run_directory(simulated_run("exp1", 1));
+  io::RunDirectory run = io::open_run_directory(simulated_run("exp1", 1));
+  test::shorten_under_sanitizers(run, 6.0);  // the edit and the rebuild on 6 s; 20 s in Release
   MappingConfig cfg;
   cfg.local_map.smoothing_radius = 0.0;
   Mapper mapper({.robot = run.robot, .T_cabin_sensor = run.T_cabin_sensor}, cfg);
