@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # ctest RosMapper.PlaysABag: simulate a short run as a bag, map it with `cairn map --bag` (the
 # reference), then rostest (its own master) plays the bag into cairn_mapper and compares.
-#   run_mapper_test.sh CAIRN_EXE ROS_PACKAGE_DIR WORK_DIR
+#   run_mapper_test.sh CAIRN_EXE ROS_PACKAGE_DIR WORK_DIR [SECONDS]
+# SECONDS of simulated scanning (4; the sanitizer build runs the same path on 2).
 set -euo pipefail
 cairn=$1
 pkg_dir=$2
 work=$3
+seconds=${4:-4}
 rm -rf "$work"
 mkdir -p "$work"
-"$cairn" simulate --scenario exp1 --seed 1 --duration 4 --no-drone --out "$work/run" --bag "$work/run.bag" \
+"$cairn" simulate --scenario exp1 --seed 1 --duration "$seconds" --no-drone --out "$work/run" --bag "$work/run.bag" \
   --log-level warn > "$work/simulate.json"
 "$cairn" map --bag "$work/run.bag" --out "$work/map.ply" --log-level warn > "$work/map.json"
 read -r sweeps nodes points < <(/usr/bin/python3 -c '

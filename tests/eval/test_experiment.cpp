@@ -89,7 +89,7 @@ ExperimentConfig short_exp1(int stones, const std::string& db) {
   c.tracking.simulation.site.stones.count = 1;  // the same path, short (figures asserted in Release)
   c.tracking.initial_scan = 6.0;
   c.tracking.rescan = 4.0;
-  c.registration_timeout = 10.0;
+  c.registration_timeout = 10.0;  // 10 s of scanning before the database is filled: the stone is seen
   c.max_attempts = 1;
 #endif
   return c;
@@ -167,7 +167,7 @@ TEST(Experiment, PileIsClearedOneStoneAtATimeReSegmentingAfterEveryMove) {
   c.tracking.simulation.site.stones.count = 2;  // the same path, short
   c.tracking.initial_scan = 6.0;
   c.tracking.rescan = 4.0;
-  c.registration_timeout = 10.0;
+  c.registration_timeout = c.registration_period;  // one attempt
 #endif
   const ExperimentResult r = run_experiment(c);
   std::filesystem::remove(c.tracking.database);

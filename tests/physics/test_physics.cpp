@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "cairn/core/error.hpp"
 #include "cairn/sim/physics/scene.hpp"
@@ -440,7 +441,12 @@ TEST(Settle, ScenarioStonesRestStably) {
   // The scenarios' generator tips every stone until its centroid lies over its support; MuJoCo
   // then barely moves most of them. Without that step most stones tip by tenths of a radian.
   std::size_t still_on = 0, still_off = 0, total = 0;
-  for (std::uint64_t seed : {1, 2}) {
+#ifdef __SANITIZE_ADDRESS__
+  const std::vector<std::uint64_t> seeds{1};  // the path once under ASan; the figure in Release
+#else
+  const std::vector<std::uint64_t> seeds{1, 2};
+#endif
+  for (std::uint64_t seed : seeds) {
     SimulationConfig cfg = scenario_config("exp1", default_real_mesh_dir());
     still_on += count_still(settle_motion(generate_site(cfg.site, seed)));
     cfg.site.stones.settle = false;
@@ -452,7 +458,9 @@ TEST(Settle, ScenarioStonesRestStably) {
   // Measured: 9 / 14 vs 1 / 14 (seeds 1, 2); the rest roll on the slope or off an edge that the
   // quasi-static check took for support (MuJoCo collides with the stones' convex hulls).
   EXPECT_GE(still_on, total / 2);
+#ifndef __SANITIZE_ADDRESS__
   EXPECT_GE(still_on, still_off + 4);
+#endif
 }
 
 }  // namespace
