@@ -13,6 +13,25 @@ function(cairn_target_options target)
   endif()
 endfunction()
 
+# The precompiled headers (CAIRN_PCH): what nearly every file includes. Parsing them was about a
+# fifth of a unity batch's compile time. Built once with cairn_core's flags, reused by the other
+# C++20 targets (not by the C++17 ROS nodes, nor by the PCL / Open3D peer tests, whose own headers
+# come first).
+set(CAIRN_PCH_HEADERS <algorithm> <array> <cmath> <cstdint> <filesystem> <fstream> <functional> <limits>
+    <map> <memory> <numbers> <optional> <random> <set> <span> <string> <vector> <Eigen/Core>
+    <Eigen/Geometry> <Eigen/Eigenvalues> <Eigen/SVD> <nlohmann/json.hpp> <spdlog/spdlog.h>
+    <tbb/blocked_range.h> <tbb/parallel_for.h>)
+function(cairn_use_pch target)
+  if(NOT CAIRN_PCH)
+    return()
+  endif()
+  if(target STREQUAL "cairn_core")
+    target_precompile_headers(cairn_core PRIVATE ${CAIRN_PCH_HEADERS})
+  else()
+    target_precompile_headers(${target} REUSE_FROM cairn_core)
+  endif()
+endfunction()
+
 # cairn_add_library(name SOURCES ... DEPS ...): one static library per stage folder.
 function(cairn_add_library name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
@@ -20,6 +39,7 @@ function(cairn_add_library name)
   target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR}/src)
   target_link_libraries(${name} PUBLIC ${ARG_DEPS})
   cairn_target_options(${name})
+  cairn_use_pch(${name})
   if(CAIRN_SANITIZE)
     target_link_options(${name} INTERFACE -fsanitize=address,undefined,float-cast-overflow)
   endif()

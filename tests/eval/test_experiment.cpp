@@ -89,7 +89,7 @@ ExperimentConfig short_exp1(int stones, const std::string& db) {
   c.tracking.simulation.site.stones.count = 1;  // the same path, short (figures asserted in Release)
   c.tracking.initial_scan = 6.0;
   c.tracking.rescan = 4.0;
-  c.registration_timeout = 10.0;  // 10 s of scanning before the database is filled: the stone is seen
+  c.registration_period = c.registration_timeout = 10.0;  // one attempt; 10 s of scanning: the stone is seen
   c.max_attempts = 1;
 #endif
   return c;

@@ -830,9 +830,10 @@ io::Mesh prepare_real_stone_mesh(const io::Mesh& raw, double target_volume) {
 }
 
 io::Mesh make_icosphere(int subdivisions) {
-  require(subdivisions >= 0 && subdivisions <= kMaxIcosphereSubdivisions,
-          "make_icosphere: subdivisions must be in [0, " +
-              std::to_string(kMaxIcosphereSubdivisions) + "]");
+  // Appended, not `a + b + "]"`: GCC 12 warns falsely (-Warray-bounds) on that concatenation here.
+  std::string range = "make_icosphere: subdivisions must be in [0, ";
+  range.append(std::to_string(kMaxIcosphereSubdivisions)).append("]");
+  require(subdivisions >= 0 && subdivisions <= kMaxIcosphereSubdivisions, range);
   const RawMesh s = icosphere(subdivisions);
   return to_mesh(s.v, s.t);
 }
