@@ -167,7 +167,7 @@ TEST(Experiment, PileIsClearedOneStoneAtATimeReSegmentingAfterEveryMove) {
   c.tracking.simulation.site.stones.count = 2;  // the same path, short
   c.tracking.initial_scan = 6.0;
   c.tracking.rescan = 4.0;
-  c.registration_timeout = c.registration_period;  // one attempt
+  c.registration_timeout = c.registration_period;  // one attempt: 6 s of scanning before the database is filled
 #endif
   const ExperimentResult r = run_experiment(c);
   std::filesystem::remove(c.tracking.database);
