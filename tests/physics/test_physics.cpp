@@ -453,8 +453,9 @@ TEST(Settle, ScenarioStonesRestStably) {
   }
   std::printf("stones that stay put in MuJoCo (< 0.1 rad, < 6 cm): settled %zu / %zu, unsettled %zu / %zu\n",
               still_on, total, still_off, total);
-  // Measured: 12 / 14 vs 3 / 14 (seeds 1, 2; was 9 vs 1 when written); the rest roll on the slope or off an edge that the
-  // quasi-static check took for support (MuJoCo collides with the stones' convex hulls).
+  // Measured: 12 / 14 vs 3 / 14 (seeds 1, 2; 9 vs 1 when written); the rest roll on the slope or
+  // off an edge that the quasi-static check took for support (MuJoCo collides with the stones'
+  // convex hulls).
   EXPECT_GE(still_on, total / 2);
   if (!test::kSanitized) {
     EXPECT_GE(still_on, still_off + 4);
