@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -23,6 +24,7 @@ namespace {
 
 using Eigen::Vector3d;
 using cairn::kDeg;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 std::vector<Vec3f> normals_within(const PointCloud& c, const Vec3f& p, double r) {
   std::vector<Vec3f> out;
@@ -104,8 +106,19 @@ TEST(Collision, BoxShadowsRejectOnlyPointsNoBoxCanTouch) {
   }
 }
 
-// Gathering a pose's points during the kd-tree visit gives what gathering the radius search's
-// indices gives, point for point in the same order (the contact patches sum them).
+/// A gathered set in a fixed order (object points with their normals, the environment's).
+std::vector<std::array<double, 6>> sorted_points(const LocalPoints& p) {
+  std::vector<std::array<double, 6>> out;
+  for (std::size_t i = 0; i < p.object.size(); ++i)
+    out.push_back({p.object[i].x(), p.object[i].y(), p.object[i].z(), p.normals[i].x(), p.normals[i].y(), p.normals[i].z()});
+  for (const Vector3d& q : p.environment) out.push_back({q.x(), q.y(), q.z(), kInf, kInf, kInf});
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// Gathering a pose's points during the kd-tree visit (a few spheres along the region) gives the
+// points gathering the indices of the one sphere around the region gives, each once, bit for bit;
+// and every one lies in the closing region.
 TEST(Collision, GatheringDuringTheTreeVisitEqualsGatheringTheIndices) {
   PointCloud cloud = test::ground_square(2.5, 0.0, 0.05);
   const PointCloud box = test::box_surface(Vector3d(0.3, 0.1, 0.4), Vector3d(0.4, 0.3, 0.4), 0.05);
@@ -122,17 +135,23 @@ TEST(Collision, GatheringDuringTheTreeVisitEqualsGatheringTheIndices) {
   T.linear() = Eigen::AngleAxisd(0.5 * std::numbers::pi, Vector3d::UnitY()).toRotationMatrix() *
                Eigen::AngleAxisd(0.3, Vector3d::UnitX()).toRotationMatrix();  // approach downwards, tilted
   T.translation() = Vector3d(0.3, 0.1, 1.0);  // the tips reach the ground
-  const double opening = 0.7 * max_opening(g);
-  Neighbors nb;
-  tree.radius(closing_centre(g, T).cast<float>(), float(closing_reach(g, opening)), nb);
-  LocalPoints a, b;
-  gather_local(cloud, nb.indices, T, g, a, 0.05);
-  gather_local(cloud, tree, T, opening, g, b, 0.05);
-  EXPECT_GT(a.object.size(), 50u);
-  EXPECT_GT(a.environment.size(), 50u);
-  EXPECT_EQ(a.object, b.object);
-  EXPECT_EQ(a.normals, b.normals);
-  EXPECT_EQ(a.environment, b.environment);
+  for (const double share : {1.0, 0.7, 0.3}) {
+    const double opening = share * max_opening(g), clearance = 0.05;
+    Neighbors nb;
+    tree.radius(closing_centre(g, T).cast<float>(), float(closing_reach(g, opening) + clearance), nb);
+    LocalPoints a, b;
+    gather_local(cloud, nb.indices, T, opening, g, a, clearance);
+    gather_local(cloud, tree, T, opening, g, b, clearance);
+    EXPECT_GT(a.object.size(), 50u);
+    EXPECT_GT(a.environment.size(), 50u);
+    EXPECT_EQ(sorted_points(a), sorted_points(b)) << "opening " << opening;
+    for (const Vector3d& q : b.environment) {
+      EXPECT_LE(std::abs(q.y()), closing_lateral(g, opening));
+      EXPECT_LE(std::abs(q.z()), 0.5 * g.jaw_height + 1e-6);
+      EXPECT_GT(q.x(), 0.0);
+      EXPECT_LE(q.x(), g.jaw_length + clearance + 1e-6);
+    }
+  }
 }
 
 /// A box in G: centre (0.5, 0, 0), 0.8 deep along x, 0.6 across (y), 0.4 high (z): the jaws,

@@ -46,8 +46,11 @@ struct SweptBox {
 [[nodiscard]] std::optional<double> advance_to_contact(const std::vector<SweptBox>& boxes,
                                                        std::span<const Eigen::Vector3d> points_G);
 
-/// Centre T * (L/2, 0, 0) of the closing region and the radius around it that holds every point
-/// a jaw can reach at this pre-grasp opening (T: G in the cloud's frame).
+/// The closing region of a pre-grasp opening, in G: x in (0, L] (the environment's up to a
+/// clearance beyond), |y| <= closing_lateral(opening) (pivot, jaw and its thickness), |z| <= H/2.
+[[nodiscard]] double closing_lateral(const GripperConfig& gripper, double opening);
+/// Centre T * (L/2, 0, 0) of the closing region and the radius around it that holds the region
+/// (T: G in the cloud's frame).
 [[nodiscard]] Eigen::Vector3d closing_centre(const GripperConfig& gripper, const Eigen::Isometry3d& T);
 [[nodiscard]] double closing_reach(const GripperConfig& gripper, double opening);
 
@@ -88,12 +91,12 @@ struct LocalPoints {
   std::vector<Eigen::Vector3d> object, normals, environment;
 };
 /// Points of `cloud` among `indices` transformed into G (T: G in the cloud's frame), kept when
-/// they lie within the jaws' height (|z| <= jaw_height/2) in front of the palm, up to the jaws'
-/// length (the environment's up to `clearance` beyond it).
+/// they lie in the closing region of `opening` (the environment's up to `clearance` beyond the
+/// jaws' length).
 void gather_local(const PointCloud& cloud, std::span<const std::uint32_t> indices, const Eigen::Isometry3d& T,
-                  const GripperConfig& gripper, LocalPoints& out, double clearance = 0.0);
-/// The same over the points of `tree` (indexing cloud.points) within closing_reach(opening) of
-/// closing_centre(T), in the tree's order, without collecting the indices first.
+                  double opening, const GripperConfig& gripper, LocalPoints& out, double clearance = 0.0);
+/// The same points over all of `tree` (indexing cloud.points), without collecting indices first:
+/// the region is visited as a few spheres along y_G, so the order differs from the list's.
 void gather_local(const PointCloud& cloud, const KdTree& tree, const Eigen::Isometry3d& T, double opening,
                   const GripperConfig& gripper, LocalPoints& out, double clearance = 0.0);
 

@@ -51,7 +51,7 @@ double robustness(const PlanningCloud& pc, const KdTree& tree, const Candidate& 
     P.translation() = dt;
     const Vector3d w = dr * (c.sigma_rotation_deg * kDeg);
     if (w.norm() > 0) P.linear() = Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix();
-    gather_local(pc.cloud, nb.indices, cand.T * P, g, local);
+    gather_local(pc.cloud, nb.indices, cand.T * P, cand.opening, g, local);
     const Closing closing = close_jaws(g, open_angle, local.object, local.normals, local.environment, c.patch_voxels * voxel);
     kept += force_closure(closing, mu) ? 1 : 0;
   }
