@@ -13,7 +13,9 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <set>
 
 #include "cairn/core/error.hpp"
@@ -69,6 +71,28 @@ TEST(GraspDetection, LoadDropJawTravelAndEmptyLiftsAreFailures) {
   // Stopped before the lift (contact on the approach): no hold phase at all.
   const auto stopped = detect_grasp_failure(trial([](double) { return 0.0; }, [](double) { return 1.0; }, false), c);
   EXPECT_EQ(stopped.signs, std::vector<std::string>{"not_lifted"});
+}
+
+// The machine's at-target check carries the planned centre of mass with the object's stored
+// motion, rotation included: a stone turned in the jaws about its grip is not where a translation
+// of its centre would put it.
+TEST(TargetCheck, TheEstimatedCentreIsCarriedByTheStoredMotionAndALostObjectIsNeverAtItsTarget) {
+  const SlipDetectionConfig c;  // target_tolerance 0.10 m
+  const Vec3d centre(2.0, 1.0, 0.5), grip(2.3, 1.0, 1.0);
+  // Grasped at the grip, turned 90 degrees about the vertical there, carried 3 m along x.
+  const Eigen::Isometry3d moved = Eigen::Translation3d(3.0, -1.0, 0.0) * Eigen::Translation3d(grip) *
+                                  Eigen::AngleAxisd(0.5 * std::numbers::pi, Vec3d::UnitZ()) *
+                                  Eigen::Translation3d(-grip);
+  const Eigen::Vector2d landed = (moved * centre).head<2>();
+  EXPECT_TRUE(seen_at_target(ObjectStatus::placed, moved, centre, landed, c));
+  EXPECT_TRUE(seen_at_target(ObjectStatus::placed, moved, centre, landed + Eigen::Vector2d(0.0, 0.09), c));
+  EXPECT_FALSE(seen_at_target(ObjectStatus::placed, moved, centre, landed + Eigen::Vector2d(0.0, 0.11), c));
+  // Where the translation alone would put the centre: 0.42 m off after the turn.
+  const Eigen::Vector2d translated = centre.head<2>() + Eigen::Vector2d(3.0, -1.0);
+  EXPECT_NEAR((translated - landed).norm(), std::hypot(0.3, 0.3), 1e-12);
+  EXPECT_FALSE(seen_at_target(ObjectStatus::placed, moved, centre, translated, c));
+  // Lost: the re-alignment did not find it, whatever the stored motion says.
+  EXPECT_FALSE(seen_at_target(ObjectStatus::lost, moved, centre, landed, c));
 }
 
 std::filesystem::path fresh_db(const std::string& name) {

@@ -137,6 +137,11 @@ GraspDetection detect_grasp_failure(const sim::GraspTrialResult& r, const SlipDe
   return d;
 }
 
+bool seen_at_target(ObjectStatus status, const Eigen::Isometry3d& moved, const Vec3d& mass_centroid, const Vec2d& target,
+                    const SlipDetectionConfig& c) {
+  return status != ObjectStatus::lost && ((moved * mass_centroid).head<2>() - target).norm() <= c.target_tolerance;
+}
+
 namespace {
 
 /// The experiment on one Tracker: registration while scanning, then the rounds of planned moves.
@@ -159,6 +164,12 @@ class Experiment {
   [[nodiscard]] std::optional<Vec2d> free_target(int round, const ObjectRecord& obj, std::vector<bool>& used) const;
   [[nodiscard]] double ground_height(const PointCloud& map, const Vec2d& xy, double fallback) const;
   [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
+  [[nodiscard]] GraspPlan command(const grasp::GraspPlanning& p, const ObjectRecord& obj, const PointCloud& map,
+                                 const Vec2d& target, int stone, double t0) const;
+  sim::GraspTrialResult execute(const GraspPlan& plan, int attempt, GraspRecord& g);
+  void release_and_rescan(int round, int attempt, Tracker::Tracked& tr, const sim::GraspTrialResult& r,
+                          const Isometry3d& T_MG_grasp, double t0, MoveRecord& mv, const Isometry3d& E,
+                          const GraspDetection& d);
   bool attempt(int round, int attempt, Tracker::Tracked& tr, const Vec2d& target);
   void move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& used);
   void search_lost(int round, int attempt, const Tracker::Tracked& tr);
@@ -331,6 +342,74 @@ void cut(PointCloud& cloud, const std::vector<MapEdit>& edits) {
   }
 }
 
+/// The command of one attempt: grasp `best` where it was planned, then the stone's centre of mass
+/// as the planner estimates it (Sec. 5.2: the planning cloud with the unseen side completed) over
+/// the target, lowered until contact (place_depth below the contact the map predicts: the ground
+/// under the target vs the object's underside). Poses in the world, commanded from the map at t0.
+GraspPlan Experiment::command(const grasp::GraspPlanning& p, const ObjectRecord& obj, const PointCloud& map,
+                              const Vec2d& target, int stone, double t0) const {
+  const ScanningMachine& m = tracker_.machine();
+  const grasp::Grasp& best = p.grasps.front();
+  const double bottom = low_z(obj.cloud, 0.02);
+  const double dz = ground_height(map, target, bottom) - bottom - c_.place_depth;
+  const Vec2d shift = target - p.cloud.mass_centroid.head<2>();
+  const Isometry3d T_MG_place = Eigen::Translation3d(shift.x(), shift.y(), dz) * best.T_map_gripper;
+  GraspPlan plan = grasp::to_grasp_plan(best, GraspPlan{});
+  plan.lift_height = c_.lift_height;
+  plan.T_world_gripper = m.E_state(t0) * best.T_map_gripper;
+  plan.T_world_place = m.E_state(t0 + c_.tracking.carry_time) * T_MG_place;
+  plan.target_stone = stone;  // the physics' truth: grasping another stone is a failure
+  return plan;
+}
+
+/// Runs the command in the physics and makes its outcome the world the sensors see (stones
+/// settled where they came to rest); the truth figures of the attempt go into `g`.
+sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, GraspRecord& g) {
+  ScanningMachine& m = tracker_.machine();
+  sim::Site& site = m.world().site;
+  const std::vector<std::vector<Vec3d>> surfaces_before = surfaces(site);
+  sim::PhysicsConfig physics = m.config().physics;
+  physics.abort_on_failure = false;  // the machine carries on until it notices itself
+  physics.place_support_fraction = c_.place_support;
+  if (c_.inject_friction > 0 && moves_ == c_.inject_move && attempt == 1) physics.friction = c_.inject_friction;
+  Stopwatch sw;
+  sim::GraspTrialResult r = sim::run_grasp_trial(site, plan, m.config().gripper, physics);
+  sim::apply_stone_poses(site, r.stone_poses);
+  tracker_.world_moved(r.stone_poses);
+  if (!r.settled) tracker_.world_moved(sim::settle_site(site, m.config().physics).stone_poses);
+  m.world().scene = sim::make_world_scene(site, m.config().terrain_mesh_spacing);
+  std::vector<bool> skip = moved_;
+  skip[std::size_t(g.stone)] = true;
+  g.others_moved_m = largest_motion(site, surfaces_before, skip);
+  out.pile_shifts += g.others_moved_m > c_.pile_shift;
+  g.sim_time = r.sim_time;
+  g.wall_s = sw.lap_ms() / 1000.0;
+  physics_ms_ += 1000.0 * g.wall_s;
+  g.success = r.success;
+  g.failure_reasons = r.failure_reasons;
+  g.place_error_m = r.place_error;
+  return r;
+}
+
+/// Release (Eq. 3): where the arm opened the jaws when the machine measured the stone still held
+/// there, else where it was grasped (the machine expects it there and searches); then the rescan,
+/// the re-alignment and, for a lost object, the search.
+void Experiment::release_and_rescan(int round, int attempt, Tracker::Tracked& tr, const sim::GraspTrialResult& r,
+                                    const Isometry3d& T_MG_grasp, double t0, MoveRecord& mv, const Isometry3d& E,
+                                    const GraspDetection& d) {
+  ScanningMachine& m = tracker_.machine();
+  Stopwatch sw;
+  const sim::PhaseTiming* opened = find_phase(r, "release");
+  const double t_release = t0 + (opened ? opened->start : r.sim_time);
+  const Isometry3d T_MG_release = d.held_at_release ? m.E_state(t_release).inverse() * r.T_world_release : T_MG_grasp;
+  (void)tracker_.db().commit(release_operation(*tracker_.db().object(tr.object), T_MG_release, t_release));
+  tracker_.score(mv, tr, E, /*predicted=*/true);
+  (void)tracker_.rescan_and_realign(mv, tr, t0 + r.sim_time);
+  if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) search_lost(round, attempt, tr);
+  realign_ms_ += sw.lap_ms();
+  tracker_.result.moves.push_back(mv);
+}
+
 /// One attempt at moving the stone to `target`: plan on what the machine senses, execute in the
 /// physics, update the database (Eq. 3), rescan and re-align. True when the machine sees the
 /// object at its target.
@@ -364,71 +443,21 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   MoveRecord mv{.round = round, .stone = tr.stone, .object = tr.object, .purity = tr.purity, .time = m.now()};
   const Operation grasp_op = tracker_.commit_grasp(mv, tr, best.T_map_gripper, map, *before, E);
   if (drone_) cut(*drone_, grasp_op.map_edits);
-  // Place: the object's centroid over the target, lowered until contact (commanded place_depth
-  // below the contact the map predicts: the ground under the target vs the object's underside).
-  const double bottom = low_z(obj.cloud, 0.02);
-  const double dz = ground_height(map, target, bottom) - bottom - c_.place_depth;
-  // The stone's centre of mass as the planner estimates it (Sec. 5.2: the planning cloud with
-  // the unseen side completed) goes over the target; the object's stored motion from here on
-  // carries it, and the rescan checks where it went.
+  // The object's stored motion from here on carries the planned centre of mass; the rescan checks where it went.
   const Isometry3d A_before = db_motion(tracker_.db().history(tr.object));
-  const Vec2d shift = target - p.cloud.mass_centroid.head<2>();
-  const Isometry3d T_MG_place = Eigen::Translation3d(shift.x(), shift.y(), dz) * best.T_map_gripper;
-  GraspPlan plan = grasp::to_grasp_plan(best, GraspPlan{});
-  plan.lift_height = c_.lift_height;
   const double t0 = m.now();
-  plan.T_world_gripper = m.E_state(t0) * best.T_map_gripper;  // commanded in the map frame
-  plan.T_world_place = m.E_state(t0 + c_.tracking.carry_time) * T_MG_place;
-  plan.target_stone = tr.stone;  // the physics' truth: grasping another stone is a failure
-  const std::vector<std::vector<Vec3d>> surfaces_before = surfaces(m.world().site);
-  sim::PhysicsConfig physics = m.config().physics;
-  physics.abort_on_failure = false;  // the machine carries on until it notices itself
-  physics.place_support_fraction = c_.place_support;
-  if (c_.inject_friction > 0 && moves_ == c_.inject_move && attempt == 1) physics.friction = c_.inject_friction;
-  Stopwatch sw;
-  sim::GraspTrialResult r = sim::run_grasp_trial(m.world().site, plan, m.config().gripper, physics);
-  sim::Site& site = m.world().site;
-  sim::apply_stone_poses(site, r.stone_poses);
-  tracker_.world_moved(r.stone_poses);
-  if (!r.settled) tracker_.world_moved(sim::settle_site(site, m.config().physics).stone_poses);
-  m.world().scene = sim::make_world_scene(site, m.config().terrain_mesh_spacing);
-  std::vector<bool> skip = moved_;
-  skip[std::size_t(tr.stone)] = true;
-  g.others_moved_m = largest_motion(site, surfaces_before, skip);
-  out.pile_shifts += g.others_moved_m > c_.pile_shift;
-  g.sim_time = r.sim_time;
-  g.wall_s = sw.lap_ms() / 1000.0;
-  physics_ms_ += 1000.0 * g.wall_s;
-  g.success = r.success;
-  g.failure_reasons = r.failure_reasons;
+  const sim::GraspTrialResult r = execute(command(p, obj, map, target, tr.stone, t0), attempt, g);
   g.detection = detect_grasp_failure(r, c_.detection);
-  // Release (Eq. 3): where the arm opened the jaws, when the stone was still held; else the
-  // machine expects it where it was and searches there (relocate_object).
-  const sim::PhaseTiming* opened = find_phase(r, "release");
-  const double t_release = t0 + (opened ? opened->start : r.sim_time);
-  const Isometry3d T_MG_release =
-      g.detection.held_at_release ? m.E_state(t_release).inverse() * r.T_world_release : best.T_map_gripper;
-  (void)tracker_.db().commit(release_operation(*tracker_.db().object(tr.object), T_MG_release, t_release));
-  tracker_.score(mv, tr, E, /*predicted=*/true);
-  sw.lap_ms();
-  (void)tracker_.rescan_and_realign(mv, tr, t0 + r.sim_time);
-  if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) search_lost(round, attempt, tr);
-  realign_ms_ += sw.lap_ms();
-  tracker_.result.moves.push_back(mv);
+  release_and_rescan(round, attempt, tr, r, best.T_map_gripper, t0, mv, E, g.detection);
   g.move = mv;
-  g.place_error_m = r.place_error;
-  // The machine's check: the estimated centre of mass, carried by the object's stored motion
-  // since planning (grasp, release, re-alignment), at its target.
-  const ObjectRecord after = *tracker_.db().object(tr.object);
   const Isometry3d moved = db_motion(tracker_.db().history(tr.object)) * A_before.inverse();
-  const bool at_target = after.status != ObjectStatus::lost &&
-                         ((moved * p.cloud.mass_centroid).head<2>() - target).norm() <= c_.detection.target_tolerance;
+  const bool at_target = seen_at_target(tracker_.db().object(tr.object)->status, moved, p.cloud.mass_centroid, target,
+                                        c_.detection);
   if (!at_target) g.detection.signs.push_back("not_at_target");
   g.detection.failed = g.detected = !g.detection.signs.empty();
   // Truth (scoring): the stone's centroid in the map's frame against the target.
-  const auto now = tracker_.truth();
-  const Isometry3d E_now = now->offset->map_offset(m.mapper().map());
-  g.target_error_m = ((E_now.inverse() * site.stones[std::size_t(tr.stone)].centroid).head<2>() - target).norm();
+  const Isometry3d E_now = tracker_.truth()->offset->map_offset(m.mapper().map());
+  g.target_error_m = ((E_now.inverse() * m.world().site.stones[std::size_t(tr.stone)].centroid).head<2>() - target).norm();
   out.grasps.push_back(g);
   spdlog::debug("demo: round {} stone {} attempt {}: {} ({}), detected {}, target error {:.3f} m", round, tr.stone,
                 attempt, r.success ? "held" : "failed", r.message, g.detected, g.target_error_m);

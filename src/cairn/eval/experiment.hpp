@@ -32,6 +32,7 @@
 #include "cairn/grasp/output.hpp"
 #include "cairn/grasp/planner.hpp"
 #include "cairn/mapping/mapper.hpp"
+#include "cairn/objects/object_db.hpp"
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/sim/physics/physics.hpp"
 
@@ -244,5 +245,12 @@ ExperimentResult run_experiment(const ExperimentConfig& config, const Experiment
 
 /// Exposed for tests: the machine's verdict on one physics trial from its jaw and load traces.
 [[nodiscard]] GraspDetection detect_grasp_failure(const sim::GraspTrialResult& trial, const SlipDetectionConfig& c);
+
+/// The machine's check after a move (never the truth): the object not lost, and the centre of mass
+/// the planner estimated, carried by the object's stored motion since planning (`moved`: grasp,
+/// release and re-alignment composed), within target_tolerance of the target in xy.
+[[nodiscard]] bool seen_at_target(ObjectStatus status, const Eigen::Isometry3d& moved,
+                                  const Eigen::Vector3d& mass_centroid, const Eigen::Vector2d& target,
+                                  const SlipDetectionConfig& c);
 
 }  // namespace cairn::eval
