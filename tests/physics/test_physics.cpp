@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <vector>
 
 #include "cairn/core/error.hpp"
@@ -167,6 +169,9 @@ TEST(GraspTrial, CentredGraspsHoldTheGeneratedStonesWithoutCreep) {
   PhysicsConfig soft = cfg.physics;
   soft.cone = "pyramidal";
   soft.noslip_iterations = 0;
+  // The contrast is the creep alone: a creeping stone wedged while lifted can also stall the arm
+  // (stone 5: 61 kN), which would hide its slip.
+  soft.arm_max_force = std::numeric_limits<double>::infinity();
 #ifdef __SANITIZE_ADDRESS__
   const std::size_t stones = 2;  // the path once under ASan; the figures in Release
 #else
@@ -181,6 +186,7 @@ TEST(GraspTrial, CentredGraspsHoldTheGeneratedStonesWithoutCreep) {
     const GraspTrialResult r = run_grasp_trial(w.site, plan, cfg.gripper, cfg.physics);
     held += r.success ? 1 : 0;
     slipped += has_reason(r, reason::kSlipped) ? 1 : 0;
+    EXPECT_FALSE(r.arm_stalled) << "stone " << k << ": " << r.message;  // a normal carry never stalls
     if (r.success) {
       const double creep = creep_in(r, "hold");
       EXPECT_GE(creep, 0.0) << "stone " << k << ": no hold phase";
@@ -248,6 +254,41 @@ TEST(GraspTrial, StonesFarFromThePathAreStatic) {
   plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
   plan.target_stone = 0;
   EXPECT_EQ(run_grasp_trial(site, plan, gripper, fast_config()).free_stones, 2);
+}
+
+// A carried stone driven into a wall: the arm's force limit stalls it where it hits (the machine
+// knows: arm_stalled) and it is set down there; without the limit the arm's weld drives on and
+// shoves the 16 t wall aside.
+TEST(GraspTrial, TheArmStallsWhenTheCarriedStoneHitsSomething) {
+  Site site = flat_box_site();
+  site.stones.push_back(box_stone({2.0, -2.0, 0.0}, {2.6, 2.0, 2.5}));  // in the way, 6 m^3
+  const GripperConfig gripper;
+  CentredGraspOptions o;
+  o.place_offset = {5.0, 0.0};  // beyond the wall
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.target_stone = 0;
+  plan.swing_pivot.reset();  // straight through
+  plan.lift_height = 0.5;    // the carried box's underside below the wall's top
+  PhysicsConfig c = fast_config();
+  c.abort_on_failure = false;  // the experiment's machine: blind to the simulator's verdicts
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
+  EXPECT_TRUE(r.arm_stalled) << r.message;
+  EXPECT_TRUE(has_reason(r, reason::kCollisionTransport)) << r.message;
+  ASSERT_EQ(r.stone_poses.size(), 2u);
+  const auto moved = [&](const GraspTrialResult& t, int k) {
+    const Vector3d c0 = site.stones[std::size_t(k)].centroid;
+    return (t.stone_poses[std::size_t(k)] * c0 - c0).norm();
+  };
+  EXPECT_LT(moved(r, 1), 0.1) << "the wall";
+  EXPECT_LT((r.stone_poses[0] * site.stones[0].centroid).x(), 2.0) << "the carried box stays on its side";
+  EXPECT_LT(r.T_world_release.translation().x(), 2.0);
+  if (test::kSanitized) return;  // the comparison without the limit: Release only (the path is the same)
+  c.arm_max_force = std::numeric_limits<double>::infinity();  // the weld alone
+  const GraspTrialResult weld = run_grasp_trial(site, plan, gripper, c);
+  EXPECT_FALSE(weld.arm_stalled);
+  std::printf("wall moved %.3f m with the arm's limit, %.3f m without; carried box %.3f vs %.3f m\n", moved(r, 1),
+              moved(weld, 1), moved(r, 0), moved(weld, 0));
+  EXPECT_GT(moved(weld, 1), 0.5) << weld.message;
 }
 
 TEST(GraspTrial, SwingAboutAPivotSucceeds) {

@@ -130,6 +130,7 @@ GraspDetection detect_grasp_failure(const sim::GraspTrialResult& r, const SlipDe
   d.jaw_travel = std::isfinite(closed) ? closed - tightest : 0.0;
   if (!(d.lifted_load >= c.min_load)) d.signs.push_back("nothing_lifted");
   if (d.jaw_travel > c.jaw_travel) d.signs.push_back("jaws_closed_further");
+  if (r.arm_stalled) d.signs.push_back("arm_stalled");  // the arm's controller knows it stopped
   if (d.lifted_load >= c.min_load && !(d.release_load >= (1.0 - c.load_drop) * d.lifted_load))
     d.signs.push_back("load_dropped");
   d.held_at_release = d.lifted_load >= c.min_load && d.release_load >= (1.0 - c.load_drop) * d.lifted_load;

@@ -143,7 +143,7 @@ struct RegistrationOutcome {
 /// What the machine measured during one grasp (SlipDetectionConfig).
 struct GraspDetection {
   bool failed = false;
-  std::vector<std::string> signs;  // nothing_lifted, jaws_closed_further, load_dropped, not_at_target
+  std::vector<std::string> signs;  // nothing_lifted, jaws_closed_further, arm_stalled, load_dropped, not_at_target
   double lifted_load = 0.0, release_load = 0.0;  // [N]
   double jaw_travel = 0.0;                        // [m]
   bool held_at_release = false;

@@ -42,6 +42,7 @@ nlohmann::json to_json(const GraspTrialResult& r) {
           {"swing_in", rounded_json(r.swing_in)},
           {"jaw_travel", rounded_json(r.jaw_travel)},
           {"place_error", rounded_json(r.place_error)},
+          {"arm_stalled", r.arm_stalled},
           {"release_pose", pose_to_json(r.T_world_release)},
           {"settled", r.settled},
           {"stone_poses", poses},

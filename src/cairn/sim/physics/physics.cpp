@@ -33,6 +33,7 @@ constexpr double kEmptyMargin = 0.01;       // [m] jaws this close to fully clos
 constexpr double kContactWindow = 0.05;     // [s] a jaw touches what it touched this recently
 constexpr double kExtentAngleStep = 0.5;    // [deg] search step of the shortest extent
 constexpr int kJawFootprintSamples = 9;     // per axis, terrain samples under the jaws' sweep
+constexpr double kStallLowering = 0.5;      // [m] after a stall, lowered by the lift height and this
 
 void require(bool ok, const std::string& message) {
   if (!ok) throw ConfigError("PhysicsConfig: " + message);
@@ -269,15 +270,20 @@ class Trial {
       stone_at_lift_ = scene_.stone_body_pose(r_.grasped_stone);
       T_gripper_stone0_ = scene_.gripper_pose().inverse() * stone_at_lift_;
       opening_at_lift_ = scene_.opening();
-      ok = phase("lift", [&] { return move(lifted, c_.lift_speed, false, [&] { return keep(transport_ok(true)); }); }) &&
-           phase("hold", [&] { return wait(c_.hold_time, [&] { return keep(transport_ok(false)); }); }) &&
+      // Carrying: the simulator's verdicts, and the arm's own force limit (it stalls where it is).
+      const auto carry = [&](bool lifting) { return keep(transport_ok(lifting)) && !arm_stalled(); };
+      ok = phase("lift", [&] { return move(lifted, c_.lift_speed, false, [&] { return carry(true); }); }) &&
+           phase("hold", [&] { return wait(c_.hold_time, [&] { return carry(false); }); }) &&
            grip_settled() &&
-           phase("move", [&] { return move(above_place, c_.move_speed, true, [&] { return keep(transport_ok(false)); }); }) &&
-           phase("hold", [&] { return wait(c_.hold_time, [&] { return keep(transport_ok(false)); }); }) && keep(still_held());
+           phase("move", [&] { return move(above_place, c_.move_speed, true, [&] { return carry(false); }); }) &&
+           phase("hold", [&] { return wait(c_.hold_time, [&] { return carry(false); }); }) && keep(still_held());
     }
     if (ok || !c_.abort_on_failure) {
       if (r_.grasped_stone >= 0) {
-        phase("place", [&] { return move(plan_.T_world_place, c_.lift_speed, false, [&] { return !supported(); }); });
+        // After a stall the machine sets the stone down where the arm stopped: straight down.
+        const Isometry3d place = r_.arm_stalled ? translated_world(target_, -(plan_.lift_height + kStallLowering) * Vector3d::UnitZ())
+                                                : plan_.T_world_place;
+        phase("place", [&] { return move(place, c_.lift_speed, false, [&] { return !supported(); }); });
       }
       r_.T_world_release = target_;
       phase("release", [&] {
@@ -340,6 +346,7 @@ class Trial {
   template <class F>
   bool phase(const char* name, F&& body) {
     PhaseTiming t{.name = name, .start = scene_.time(), .end = 0.0};
+    phase_now_ = name;
     const auto wall_start = std::chrono::steady_clock::now();
     const bool ok = body();
     t.end = scene_.time();
@@ -407,6 +414,24 @@ class Trial {
       step();
       if (!monitor()) return false;
     }
+    return true;
+  }
+
+  /// The arm's force above its limit while carrying: the arm stops where it is (the target
+  /// follows the gripper, so the weld pushes no further) and the machine knows it.
+  bool arm_stalled() {
+    if (r_.arm_stalled) return true;
+    // Low-passed (the hydraulics feel sustained pressure; the weld rings step to step).
+    arm_force_ += std::min(1.0, c_.timestep / c_.arm_stall_time) * (scene_.arm_force() - arm_force_);
+    const double force = arm_force_.norm();
+    if (!(force > c_.arm_max_force)) return false;
+    r_.arm_stalled = true;
+    target_ = scene_.gripper_pose();
+    scene_.set_gripper_target(target_);
+    std::ostringstream m;
+    m.precision(3);
+    m << "arm stalled (" << force / 1000.0 << " kN) in " << phase_now_ << at_time();
+    fail(reason::kArmStalled, m.str());
     return true;
   }
 
@@ -603,7 +628,9 @@ class Trial {
   bool gripped_ = false;
   double opening_at_lift_ = 0.0;
   std::string phase_name_;
+  const char* phase_now_ = "";  // the phase running
   double next_trace_ = 0.0;
+  Vector3d arm_force_ = Vector3d::Zero();  // low-passed while carrying (arm_stalled)
   std::map<std::pair<int, int>, double> last_touch_;  // (jaw, stone) -> last contact time
   GraspTrialResult r_;
 };
@@ -623,6 +650,8 @@ void validate(const PhysicsConfig& c) {
               non_negative(c.ground_rolling_friction),
           "friction coefficients must be >= 0");
   require(positive(c.contact_timeconst) && positive(c.arm_timeconst), "time constants must be > 0");
+  require(c.arm_max_force > 0.0 && positive(c.arm_stall_time),
+          "arm_max_force must be > 0 (infinite: the arm never stalls), arm_stall_time > 0");
   require(c.contact_timeconst >= 2.0 * c.timestep && c.arm_timeconst >= 2.0 * c.timestep,
           "contact_timeconst and arm_timeconst must be at least 2 * timestep (MuJoCo stability)");
   require(std::isfinite(c.seat_clearance), "seat_clearance must be finite");

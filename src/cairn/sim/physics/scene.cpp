@@ -613,15 +613,20 @@ double Scene::jaw_speed() const {
   return gripper_.jaw_length * std::max(std::abs(d_->qvel[jaw_dof_[0]]), std::abs(d_->qvel[jaw_dof_[1]]));
 }
 
-double Scene::arm_load() const {
-  // Generalised force of the arm's weld on the gripper's vertical dof (the free joint's third,
-  // world z): the sum of J[row, z] * force[row] over the weld's rows (dense Jacobian).
-  const int dof_z = m_->jnt_dofadr[m_->body_jntadr[gripper_body_]] + 2;
-  double up = 0.0;
+double Scene::arm_load() const { return arm_force().z(); }
+
+Eigen::Vector3d Scene::arm_force() const {
+  // Generalised force of the arm's weld on the gripper's translational dofs (the free joint's
+  // first three, world axes): the sum of J[row, dof] * force[row] over the weld's rows (dense
+  // Jacobian).
+  const int dof = m_->jnt_dofadr[m_->body_jntadr[gripper_body_]];
+  Eigen::Vector3d f = Eigen::Vector3d::Zero();
   for (int i = 0; i < d_->nefc; ++i) {
-    if (d_->efc_type[i] == mjCNSTR_EQUALITY) up += d_->efc_J[i * m_->nv + dof_z] * d_->efc_force[i];
+    if (d_->efc_type[i] != mjCNSTR_EQUALITY) continue;
+    for (int k = 0; k < 3; ++k) f[k] += d_->efc_J[i * m_->nv + dof + k] * d_->efc_force[i];
   }
-  return up - gripper_weight_;
+  f.z() -= gripper_weight_;
+  return f;
 }
 
 std::vector<Scene::GeomBox> Scene::gripper_boxes() const {

@@ -82,6 +82,8 @@ class Scene {
   /// Vertical force [N] the arm (the weld to the mocap target) exerts on the gripper beyond the
   /// gripper's own weight: the load cell of the arm.
   [[nodiscard]] double arm_load() const;
+  /// The force the arm's weld exerts on the gripper (world; z without the gripper's weight).
+  [[nodiscard]] Eigen::Vector3d arm_force() const;
 
   /// A box geom of the gripper in the world: its entity (kPalm, kJawLeft, kJawRight), pose and
   /// half sizes (the jaws are split into pads).
