@@ -281,8 +281,8 @@ class Trial {
     if (ok || !c_.abort_on_failure) {
       if (r_.grasped_stone >= 0) {
         // After a stall the machine sets the stone down where the arm stopped: straight down.
-        const Isometry3d place = r_.arm_stalled ? translated_world(target_, -(plan_.lift_height + kStallLowering) * Vector3d::UnitZ())
-                                                : plan_.T_world_place;
+        const Vector3d down = -(plan_.lift_height + kStallLowering) * Vector3d::UnitZ();
+        const Isometry3d place = r_.arm_stalled ? translated_world(target_, down) : plan_.T_world_place;
         phase("place", [&] { return move(place, c_.lift_speed, false, [&] { return !supported(); }); });
       }
       r_.T_world_release = target_;
