@@ -9,6 +9,7 @@
 #include <numbers>
 #include <optional>
 #include <random>
+#include <set>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/kdtree.hpp"
@@ -151,6 +152,37 @@ TEST(Collision, GatheringDuringTheTreeVisitEqualsGatheringTheIndices) {
       EXPECT_GT(q.x(), 0.0);
       EXPECT_LE(q.x(), g.jaw_length + clearance + 1e-6);
     }
+  }
+}
+
+// Every point between the open jaws is gathered, at openings wider and narrower than the pivots'
+// spacing (jaws turned inwards still span the pivots at their roots), checked against the jaws'
+// own lines, not the gatherer's bounds.
+TEST(Collision, EveryPointBetweenTheOpenJawsIsGathered) {
+  const GripperConfig g;
+  PointCloud cloud;  // a block of object points in G (T = identity), 5 cm apart
+  for (double x = 0.025; x < g.jaw_length; x += 0.05)
+    for (double y = -1.6; y <= 1.6; y += 0.05)
+      for (double z = -0.2; z <= 0.2; z += 0.1) {
+        cloud.points.emplace_back(float(x), float(y), float(z));
+        cloud.normals.push_back(Vec3f::UnitX());
+        cloud.labels.push_back(kObject);
+      }
+  const KdTree tree(cloud.points);
+  for (const double share : {1.0, 0.55, 0.3, 0.1}) {
+    const double opening = share * max_opening(g);
+    const JawLines open = jaw_lines(g, jaw_angle_for(g, opening));
+    LocalPoints local;
+    gather_local(cloud, tree, Eigen::Isometry3d::Identity(), opening, g, local);
+    std::set<std::array<float, 3>> gathered;
+    for (const Vector3d& q : local.object) gathered.insert({float(q.x()), float(q.y()), float(q.z())});
+    int between = 0;
+    for (const Vec3f& p : cloud.points) {
+      if (!open.encloses(p.cast<double>())) continue;
+      ++between;
+      EXPECT_TRUE(gathered.count({p.x(), p.y(), p.z()})) << "share " << share << ": " << p.transpose();
+    }
+    EXPECT_GT(between, 100) << "share " << share;
   }
 }
 

@@ -405,6 +405,7 @@ void Experiment::release_and_rescan(int round, int attempt, Tracker::Tracked& tr
   const Isometry3d T_MG_release = d.held_at_release ? m.E_state(t_release).inverse() * r.T_world_release : T_MG_grasp;
   (void)tracker_.db().commit(release_operation(*tracker_.db().object(tr.object), T_MG_release, t_release));
   tracker_.score(mv, tr, E, /*predicted=*/true);
+  sw.lap_ms();  // the re-alignment's time from here
   (void)tracker_.rescan_and_realign(mv, tr, t0 + r.sim_time);
   if (tracker_.db().object(tr.object)->status == ObjectStatus::lost) search_lost(round, attempt, tr);
   realign_ms_ += sw.lap_ms();

@@ -26,10 +26,10 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 /// exact slab test, far below any length of the gripper or the cloud.
 constexpr double kShadowTolerance = 1e-6;
 /// Spheres that cover a closing region for the kd-tree (3 holds the least volume for the default
-/// gripper's 1.0 x 2.8 x 0.5 m region: 1.1 m^3 against 14 m^3 for one sphere).
+/// gripper's 1.0 x 2.8 x 0.5 m region: 3 x 1.7 m^3 against 14 m^3 for one sphere).
 constexpr int kClosingSpheres = 3;
-/// [m] The closing's bisection stops when the jaw tips' contact is known to this (a fiftieth of
-/// a millimetre: far below any voxel; 14 steps for the default jaws, 24 gave 1e-7 m).
+/// [m] The closing's bisection stops when the jaw tips' contact is known to this (0.05 mm: far
+/// below any voxel; at most 15 steps for the default jaws, where 24 gave 1e-7 m).
 constexpr double kTipTolerance = 5e-5;
 /// [m] Each of those spheres is grown by this (the float rounding of the kd-tree's distances is ~1e-6 m).
 constexpr double kSphereTolerance = 1e-4;
@@ -345,7 +345,8 @@ Matrix3d local_reference_frame(std::span<const Vec3f> normals, const Vector3d& n
 Vector3d closing_centre(const GripperConfig& g, const Isometry3d& T) { return T * Vector3d(0.5 * g.jaw_length, 0.0, 0.0); }
 
 double closing_lateral(const GripperConfig& g, double opening) {
-  return 0.5 * g.hinge_spacing + g.jaw_length * std::sin(jaw_angle_for(g, opening)) + g.jaw_thickness;
+  // Jaws turned inwards (an opening below the pivots' spacing) still span the pivots at their roots.
+  return 0.5 * g.hinge_spacing + g.jaw_length * std::max(0.0, std::sin(jaw_angle_for(g, opening))) + g.jaw_thickness;
 }
 
 double closing_reach(const GripperConfig& g, double opening) {
@@ -437,9 +438,10 @@ void gather_local(const PointCloud& cloud, const KdTree& tree, const Isometry3d&
   const double depth = g.jaw_length + clearance, lateral = gather.lateral();
   const double h = lateral / double(kClosingSpheres);  // half a segment
   const double r = std::sqrt(0.25 * depth * depth + 0.25 * g.jaw_height * g.jaw_height + h * h) + kSphereTolerance;
+  const auto edge = [&](int k) { return -lateral + double(2 * k) * h; };  // one value per shared edge
   for (int k = 0; k < kClosingSpheres; ++k) {
     const double y = -lateral + double(2 * k + 1) * h;
-    const double lo = k == 0 ? -kInf : y - h, hi = k + 1 == kClosingSpheres ? kInf : y + h;
+    const double lo = k == 0 ? -kInf : edge(k), hi = k + 1 == kClosingSpheres ? kInf : edge(k + 1);
     tree.for_each_in_radius((T * Vector3d(0.5 * depth, y, 0.0)).cast<float>(), float(r),
                             [&](std::uint32_t i, float) { gather(i, lo, hi); });
   }
