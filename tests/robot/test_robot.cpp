@@ -120,8 +120,13 @@ TEST(GraspPlan, JsonRoundTripsAndRejectsBadInput) {
   plan.T_world_place.translation() = Vector3d(3.0, 1.0, 0.9);
   plan.opening = 1.3;
   plan.swing_pivot = Eigen::Vector2d(1.0, -2.0);
+  plan.place_com_xy = Eigen::Vector2d(3.25, 0.5);
   plan.target_stone = 2;
   const GraspPlan back = grasp_plan_from_json(to_json(plan), "test");
+  ASSERT_TRUE(back.place_com_xy.has_value());
+  EXPECT_EQ(*back.place_com_xy, *plan.place_com_xy);
+  EXPECT_FALSE(grasp_plan_from_json(nlohmann::json{{"T_world_gripper", to_json(plan)["T_world_gripper"]}}, "x")
+                   .place_com_xy.has_value());
   EXPECT_TRUE(back.T_world_gripper.isApprox(plan.T_world_gripper, 1e-8));
   EXPECT_TRUE(back.T_world_place.isApprox(plan.T_world_place, 1e-8));
   EXPECT_DOUBLE_EQ(back.opening, plan.opening);
@@ -140,6 +145,9 @@ TEST(GraspPlan, JsonRoundTripsAndRejectsBadInput) {
   GraspPlan shut = plan;
   shut.opening = g.closed_gap;  // nothing to close: the jaws start fully closed
   EXPECT_THROW(validate(shut, g), InputError);
+  GraspPlan nan_place = plan;
+  nan_place.place_com_xy->x() = std::nan("");
+  EXPECT_THROW(validate(nan_place, g), InputError);
   GraspPlan skew = plan;
   skew.T_world_place.linear()(0, 0) += 0.1;
   EXPECT_THROW(validate(skew, g), InputError);

@@ -83,18 +83,19 @@ nlohmann::json to_json(const GraspPlan& p) {
                    {"T_world_place", pose_to_json(p.T_world_place)},
                    {"target_stone", p.target_stone}};
   if (p.swing_pivot) j["swing_pivot"] = {p.swing_pivot->x(), p.swing_pivot->y()};
+  if (p.place_com_xy) j["place_com_xy"] = {p.place_com_xy->x(), p.place_com_xy->y()};
   return j;
 }
 
 GraspPlan grasp_plan_from_json(const nlohmann::json& j, const std::string& source) {
   if (!j.is_object()) throw InputError(source + ": a grasp plan must be a JSON object");
   static const char* kKnown[] = {"T_world_gripper", "opening",     "approach_distance", "lift_height",
-                                 "T_world_place",   "swing_pivot", "target_stone"};
+                                 "T_world_place",   "swing_pivot", "target_stone",      "place_com_xy"};
   for (const auto& [key, value] : j.items()) {
     if (std::find(std::begin(kKnown), std::end(kKnown), key) == std::end(kKnown)) {
       throw InputError(source + ": unknown key '" + key +
                        "' (known: T_world_gripper, opening, approach_distance, lift_height, "
-                       "T_world_place, swing_pivot, target_stone)");
+                       "T_world_place, swing_pivot, target_stone, place_com_xy)");
     }
   }
   if (!j.contains("T_world_gripper")) throw InputError(source + ": T_world_gripper is required");
@@ -106,6 +107,7 @@ GraspPlan grasp_plan_from_json(const nlohmann::json& j, const std::string& sourc
   if (j.contains("approach_distance")) p.approach_distance = number(j["approach_distance"], source + ": approach_distance");
   if (j.contains("lift_height")) p.lift_height = number(j["lift_height"], source + ": lift_height");
   if (j.contains("swing_pivot")) p.swing_pivot = vector<2>(j["swing_pivot"], source + ": swing_pivot");
+  if (j.contains("place_com_xy")) p.place_com_xy = vector<2>(j["place_com_xy"], source + ": place_com_xy");
   if (j.contains("target_stone")) {
     if (!j["target_stone"].is_number_integer()) throw InputError(source + ": target_stone must be an integer");
     p.target_stone = j["target_stone"].get<int>();
@@ -125,6 +127,7 @@ void validate(const GraspPlan& plan, const GripperConfig& gripper) {
     throw InputError("grasp plan: approach_distance and lift_height must be finite and >= 0");
   }
   if (plan.swing_pivot && !plan.swing_pivot->allFinite()) throw InputError("grasp plan: swing_pivot is not finite");
+  if (plan.place_com_xy && !plan.place_com_xy->allFinite()) throw InputError("grasp plan: place_com_xy is not finite");
 }
 
 }  // namespace cairn

@@ -31,6 +31,11 @@ struct GraspPlan {
   /// Swing: when set, the transport rotates about the vertical through this point (an
   /// excavator's cabin axis) instead of moving in a straight line.
   std::optional<Eigen::Vector2d> swing_pivot;
+  /// Placing by weight (beyond the paper): when set, the world xy where the stone's centre of
+  /// mass is to be set down. The arm weighs the stone while it hangs still after the lift (its
+  /// load cell's force and moment give the centre of mass under the gripper) and shifts the
+  /// place pose horizontally so that the weighed centre lands there.
+  std::optional<Eigen::Vector2d> place_com_xy;
   int target_stone = -1;  // when >= 0, grasping another stone is a failure ("wrong_stone")
 };
 

@@ -7,6 +7,11 @@ namespace {
 
 using Eigen::Isometry3d;
 
+nlohmann::json point_or_null(const Eigen::Vector3d& p) {
+  if (!p.allFinite()) return nullptr;
+  return {rounded_json(p.x()), rounded_json(p.y()), rounded_json(p.z())};
+}
+
 }  // namespace
 
 nlohmann::json to_json(const GraspTrialResult& r) {
@@ -43,6 +48,14 @@ nlohmann::json to_json(const GraspTrialResult& r) {
           {"jaw_travel", rounded_json(r.jaw_travel)},
           {"place_error", rounded_json(r.place_error)},
           {"arm_stalled", r.arm_stalled},
+          {"placement",
+           {{"released_centroid", point_or_null(r.released_centroid)},
+            {"rest_centroid", point_or_null(r.rest_centroid)},
+            {"grip_drift", r.grip_drift >= 0 ? nlohmann::json(rounded_json(r.grip_drift)) : nlohmann::json(nullptr)},
+            {"released_on_support", r.released_on_support},
+            {"release_touches", r.release_touches},
+            {"weighed_com", point_or_null(r.weighed_com)},
+            {"place_correction", r.place_correction >= 0 ? nlohmann::json(rounded_json(r.place_correction)) : nlohmann::json(nullptr)}}},
           {"release_pose", pose_to_json(r.T_world_release)},
           {"settled", r.settled},
           {"stone_poses", poses},

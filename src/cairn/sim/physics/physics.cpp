@@ -238,7 +238,7 @@ class Trial {
   Trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
         const PhysicsConfig& config)
       : plan_(plan), c_(config), closed_gap_(gripper.closed_gap), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
-        scene_(site, spec(site, plan, gripper, config, pre_grasp_), gripper, config) {
+        scene_(site, spec(site, plan, gripper, config, pre_grasp_), gripper, config), place_(plan.T_world_place) {
     target_ = pre_grasp_;
     scene_.set_gripper_target(target_);
     scene_.set_jaw_command(-1.0);
@@ -266,26 +266,33 @@ class Trial {
     ok = ok && phase("close", [&] { return close(); }) && keep(check_grasp()) && r_.grasped_stone >= 0;
     if (ok) {
       const Isometry3d lifted = translated_world(plan_.T_world_gripper, plan_.lift_height * Vector3d::UnitZ());
-      const Isometry3d above_place = translated_world(plan_.T_world_place, plan_.lift_height * Vector3d::UnitZ());
+      lifted_ = true;
       stone_at_lift_ = scene_.stone_body_pose(r_.grasped_stone);
       T_gripper_stone0_ = scene_.gripper_pose().inverse() * stone_at_lift_;
       opening_at_lift_ = scene_.opening();
       // Carrying: the simulator's verdicts, and the arm's own force limit (it stalls where it is).
       const auto carry = [&](bool lifting) { return keep(transport_ok(lifting)) && !arm_stalled(); };
       ok = phase("lift", [&] { return move(lifted, c_.lift_speed, false, [&] { return carry(true); }); }) &&
-           phase("hold", [&] { return wait(c_.hold_time, [&] { return carry(false); }); }) &&
-           grip_settled() &&
-           phase("move", [&] { return move(above_place, c_.move_speed, true, [&] { return carry(false); }); }) &&
+           phase("hold", [&] { return wait(c_.hold_time, [&] { weigh(); return carry(false); }); }) &&
+           grip_settled() && place_by_weight() &&
+           phase("move", [&] {
+             const Isometry3d above_place = translated_world(place_, plan_.lift_height * Vector3d::UnitZ());
+             return move(above_place, c_.move_speed, true, [&] { return carry(false); });
+           }) &&
            phase("hold", [&] { return wait(c_.hold_time, [&] { return carry(false); }); }) && keep(still_held());
     }
     if (ok || !c_.abort_on_failure) {
       if (r_.grasped_stone >= 0) {
         // After a stall the machine sets the stone down where the arm stopped: straight down.
         const Vector3d down = -(plan_.lift_height + kStallLowering) * Vector3d::UnitZ();
-        const Isometry3d place = r_.arm_stalled ? translated_world(target_, down) : plan_.T_world_place;
-        phase("place", [&] { return move(place, c_.lift_speed, false, [&] { return !supported(); }); });
+        const Isometry3d place = r_.arm_stalled ? translated_world(target_, down) : place_;
+        phase("place", [&] {
+          start_lowering();
+          return move(place, c_.lift_speed, false, [&] { return !set_down(); });
+        });
       }
       r_.T_world_release = target_;
+      record_release();
       phase("release", [&] {
         scene_.set_jaw_command(-1.0);
         return wait(c_.release_time, [] { return true; });
@@ -308,8 +315,9 @@ class Trial {
     });
 
     for (int k = 0; k < scene_.num_stones(); ++k) r_.stone_poses.push_back(scene_.stone_pose(k));
+    if (lifted_ && r_.grasped_stone >= 0) r_.rest_centroid = scene_.stone_body_pose(r_.grasped_stone).translation();
     if (ok && r_.grasped_stone >= 0) {
-      const Isometry3d expected = plan_.T_world_place * plan_.T_world_gripper.inverse() * stone_at_lift_;
+      const Isometry3d expected = place_ * plan_.T_world_gripper.inverse() * stone_at_lift_;
       r_.place_error = (scene_.stone_body_pose(r_.grasped_stone).translation() - expected.translation()).norm();
     }
     r_.success = r_.failure_reasons.empty();
@@ -607,7 +615,67 @@ class Trial {
   }
 
   /// The ground (terrain or other stones) carries enough of the carried stone's weight.
-  bool supported() const {
+  /// The load cell while the stone hangs still after the lift (summed; averaged by place_by_weight).
+  void weigh() {
+    weighed_load_ += scene_.arm_load();
+    weighed_moment_ += scene_.arm_moment();
+    weighed_samples_ += 1;
+  }
+
+  /// Placing by weight: the weighed centre of mass under the gripper (W (r_y, -r_x) is the arm's
+  /// moment, Scene::arm_moment), carried to the place pose by the turn between the two poses
+  /// (about the vertical: the unmeasured height of the centre does not move it sideways), and
+  /// the place pose shifted so that it lands on plan.place_com_xy. Never stops the trial.
+  bool place_by_weight() {
+    if (!plan_.place_com_xy || weighed_samples_ == 0) return true;
+    const double load = weighed_load_ / weighed_samples_;
+    if (!(load > c_.weigh_min_load)) return true;  // nothing to weigh: the plan's place pose
+    const Vector3d moment = weighed_moment_ / weighed_samples_;
+    const Vector3d r(-moment.y() / load, moment.x() / load, 0.0);
+    const Isometry3d held = scene_.gripper_pose();
+    r_.weighed_com = held.translation() + r;
+    const Eigen::Matrix3d turn = place_.linear() * held.linear().transpose();
+    const Vector2d landing = place_.translation().head<2>() + (turn * r).head<2>();
+    Vector2d shift = *plan_.place_com_xy - landing;
+    if (shift.norm() > c_.max_place_correction) shift *= c_.max_place_correction / shift.norm();
+    place_.translation().head<2>() += shift;
+    r_.place_correction = shift.norm();
+    return true;
+  }
+
+  /// Placement diagnostics (truth) when the jaws are about to open on a lifted stone.
+  void record_release() {
+    if (!lifted_ || r_.grasped_stone < 0) return;
+    const Isometry3d stone = scene_.stone_body_pose(r_.grasped_stone);
+    r_.released_centroid = stone.translation();
+    r_.grip_drift = ((scene_.gripper_pose().inverse() * stone).translation() - T_gripper_stone0_.translation()).norm();
+    r_.released_on_support = ground_carries();
+    for (const Contact& c : scene_.contacts()) {
+      if (!detail::is_gripper(c.a) || c.b == r_.grasped_stone || detail::is_gripper(c.b)) continue;
+      const std::string touch = detail::entity_name(c.a) + ":" + detail::entity_name(c.b);
+      if (std::find(r_.release_touches.begin(), r_.release_touches.end(), touch) == r_.release_touches.end())
+        r_.release_touches.push_back(touch);
+    }
+  }
+
+  /// Lowering to place: the load the arm carried (weighed in the hold after the lift; after a
+  /// stall before it, the load as lowering begins) and its low-passed value from here on.
+  void start_lowering() {
+    load_lp_ = scene_.arm_load();
+    carried_load_ = weighed_samples_ > 0 ? weighed_load_ / weighed_samples_ : load_lp_;
+  }
+
+  /// The machine's sign that the stone sits on the ground: the arm's load, low-passed like the
+  /// stall check (a first touch of a corner rings the stiff contacts for a few steps), has fallen
+  /// by place_support_fraction of the load it carried.
+  bool set_down() {
+    load_lp_ += std::min(1.0, c_.timestep / c_.arm_stall_time) * (scene_.arm_load() - load_lp_);
+    return load_lp_ < (1.0 - c_.place_support_fraction) * carried_load_;
+  }
+
+  /// Truth (diagnostics): the ground and other stones carry place_support_fraction of the held
+  /// stone's weight now.
+  bool ground_carries() const {
     const int g = r_.grasped_stone;
     double up = 0.0;
     for (const Contact& c : scene_.contacts()) {
@@ -626,6 +694,11 @@ class Trial {
   Isometry3d stone_at_lift_ = Isometry3d::Identity(), T_gripper_stone0_ = Isometry3d::Identity();
   Isometry3d T_gripper_stone1_ = Isometry3d::Identity();
   bool gripped_ = false;
+  bool lifted_ = false;  // the lift began with a stone between the jaws
+  Isometry3d place_;     // the place pose: the plan's, shifted by place_by_weight
+  double weighed_load_ = 0.0, weighed_samples_ = 0.0;
+  double load_lp_ = 0.0, carried_load_ = 0.0;  // lowering to place (set_down)
+  Vector3d weighed_moment_ = Vector3d::Zero();
   double opening_at_lift_ = 0.0;
   std::string phase_name_;
   const char* phase_now_ = "";  // the phase running
@@ -674,6 +747,8 @@ void validate(const PhysicsConfig& c) {
               positive(c.drop_distance),
           "collision_depth >= 0; slip_threshold, slip_angle_threshold, drop_distance > 0");
   require(c.place_support_fraction > 0.0 && c.place_support_fraction <= 1.0, "place_support_fraction must lie in (0, 1]");
+  require(non_negative(c.weigh_min_load) && non_negative(c.max_place_correction),
+          "weigh_min_load and max_place_correction must be >= 0");
   require(non_negative(c.free_margin) && non_negative(c.island_gap), "free_margin and island_gap must be >= 0");
   require(positive(c.trace_interval), "trace_interval must be > 0");
   require(positive(c.site_settle_time) && positive(c.rest_speed) && positive(c.rest_hold),

@@ -17,6 +17,7 @@
 // Everything is deterministic: same inputs, same results (MuJoCo runs single-threaded).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -118,8 +119,13 @@ struct PhysicsConfig {
   double slip_threshold = 0.05;        // [m] centroid displacement relative to the gripper
   double slip_angle_threshold = 0.17;  // [rad] rotation relative to the gripper (~10 deg)
   double drop_distance = 0.25;  // [m] relative motion since closing that counts as dropped
-  double place_support_fraction = 0.3;  // lowering stops when the ground carries this share of
-                                        // the stone's weight (or at the place pose)
+  /// Lowering to place stops when the arm's load, low-passed over arm_stall_time, has fallen by
+  /// this share of the load it carried (the ground carries it), or at the place pose.
+  double place_support_fraction = 0.3;
+  /// Placing by weight (GraspPlan::place_com_xy): the load the arm must carry for the weighing
+  /// to count, and the largest horizontal shift of the place pose it may command.
+  double weigh_min_load = 1000.0;     // [N]
+  double max_place_correction = 0.5;  // [m]
   bool abort_on_failure = true;  // on a failure: open the jaws, retract upwards, settle
   /// [m] trials: only stones within this distance of the gripper's path (pre-grasp, grasp, lift,
   /// place; boxes around the jaws and the carried stone), and the stones touching those, are free
@@ -194,7 +200,9 @@ struct PhysicsConfig {
     v("slip_angle_threshold", slip_angle_threshold, "[rad] largest stone rotation rel. to gripper");
     v("drop_distance", drop_distance, "[m] relative motion that counts as a drop");
     v("place_support_fraction", place_support_fraction,
-      "share of the weight on the ground that ends lowering");
+      "share of the carried load the arm's (low-passed) load must lose to end lowering");
+    v("weigh_min_load", weigh_min_load, "[N] placing by weight: the least load the weighing counts");
+    v("max_place_correction", max_place_correction, "[m] placing by weight: the largest shift of the place pose");
     v("abort_on_failure", abort_on_failure, "open, retract and settle as soon as a grasp fails");
     v("free_margin", free_margin, "[m] trials: stones this close to the gripper path are free bodies");
     v("trace_interval", trace_interval, "[s] trials: sampling interval of the jaw and load traces");
@@ -259,6 +267,22 @@ struct GraspTrialResult {
   double swing_in = 0.0;        // [m] stone displacement in the grip while lifting (no failure)
   double jaw_travel = 0.0;      // [m] further jaw closing while lifted (the paper's encoder)
   double place_error = -1.0;    // [m] final stone centroid vs expected placement (-1: not placed)
+  /// Diagnostics of the placement (simulator truth, never a machine signal; NaN / -1 when the
+  /// stone was not carried to the release): the held stone's centre of mass where the jaws
+  /// opened and at rest after the settle, and how far it had moved relative to the gripper
+  /// between the start of the lift and the jaws' opening [m].
+  Eigen::Vector3d released_centroid = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector3d rest_centroid = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double grip_drift = -1.0;
+  /// Whether the ground carried the stone (place_support_fraction of its weight) when the jaws
+  /// opened, and what the gripper touched then other than the held stone ("jaw_left:terrain").
+  bool released_on_support = false;
+  std::vector<std::string> release_touches;
+  /// Placing by weight (GraspPlan::place_com_xy): the centre of mass the arm weighed while the
+  /// stone hung still (world; x, y measured, z the gripper's; NaN when not weighed) and the
+  /// horizontal shift of the place pose it commanded (-1: none).
+  Eigen::Vector3d weighed_com = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double place_correction = -1.0;
   /// The arm stalled while carrying (its force above arm_max_force: the machine measures it) and
   /// lowered the stone where it stopped.
   bool arm_stalled = false;

@@ -629,6 +629,21 @@ Eigen::Vector3d Scene::arm_force() const {
   return f;
 }
 
+Eigen::Vector3d Scene::arm_moment() const {
+  // The free joint's rotational dofs are the body's local axes: the weld's generalised force on
+  // them is its moment about the body's origin in the body frame.
+  const int dof = m_->jnt_dofadr[m_->body_jntadr[gripper_body_]] + 3;
+  Eigen::Vector3d local = Eigen::Vector3d::Zero();
+  for (int i = 0; i < d_->nefc; ++i) {
+    if (d_->efc_type[i] != mjCNSTR_EQUALITY) continue;
+    for (int k = 0; k < 3; ++k) local[k] += d_->efc_J[i * m_->nv + dof + k] * d_->efc_force[i];
+  }
+  const Eigen::Isometry3d T = gripper_pose();
+  const Eigen::Vector3d com(d_->subtree_com[3 * gripper_body_], d_->subtree_com[3 * gripper_body_ + 1],
+                            d_->subtree_com[3 * gripper_body_ + 2]);
+  return T.linear() * local + (com - T.translation()).cross(Eigen::Vector3d(0, 0, -gripper_weight_));
+}
+
 std::vector<Scene::GeomBox> Scene::gripper_boxes() const {
   std::vector<GeomBox> out;
   for (int g = 0; g < m_->ngeom; ++g) {

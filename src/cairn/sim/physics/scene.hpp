@@ -84,6 +84,10 @@ class Scene {
   [[nodiscard]] double arm_load() const;
   /// The force the arm's weld exerts on the gripper (world; z without the gripper's weight).
   [[nodiscard]] Eigen::Vector3d arm_force() const;
+  /// The moment [N m] the arm's weld exerts on the gripper about the gripper's origin (world
+  /// axes) beyond what the gripper's own weight needs: a load W hanging at r from the origin
+  /// gives W (r_y, -r_x, 0) (the load cell's moment, with the gripper's own, known, mass taken out).
+  [[nodiscard]] Eigen::Vector3d arm_moment() const;
 
   /// A box geom of the gripper in the world: its entity (kPalm, kJawLeft, kJawRight), pose and
   /// half sizes (the jaws are split into pads).
