@@ -37,6 +37,7 @@ void prepare_out(const std::filesystem::path& out, bool overwrite) {
   if (!std::filesystem::exists(db)) return;
   if (!overwrite) throw InputError(db.string() + ": exists (an earlier run's database; use --overwrite to replace it)");
   for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(db.string() + side);
+  std::filesystem::remove_all(out / "trials");  // the earlier run's physics trials
 }
 
 int run_demo(const DemoArgs& a) {
@@ -56,6 +57,7 @@ int run_demo(const DemoArgs& a) {
   const std::filesystem::path out(a.out);
   prepare_out(out, a.overwrite);
   c.tracking.database = out / "objects.db";
+  c.trials_dir = out / "trials";
   spdlog::info("demo: experiment {} on seed {} -> {}", a.scenario, a.seed, out.string());
   const eval::ExperimentResult r = eval::run_experiment(c, [](const std::string& what, int done, int total) {
     spdlog::info("demo: {} {}/{}", what, done, total);
@@ -81,7 +83,7 @@ void add_demo_command(CLI::App& app, std::function<int()>& run) {
       "demo", "The main job: the paper's experiments end to end on the simulated machine (Sec. 6): map, register "
               "the drone cloud, segment, fill the object database, then plan, grasp, carry, place, rescan and "
               "re-align every stone (exp1: once; exp2: four rounds)");
-  cmd->add_option("--out", args->out, "output directory (summary.json, objects.db, report.html, fig_*)")->capture_default_str();
+  cmd->add_option("--out", args->out, "output directory (summary.json, objects.db, report.html, fig_*, trials/: every physics trial)")->capture_default_str();
   cmd->add_option("--scenario", args->scenario, "experiment: exp1, exp2 or pile (clearing a pile of touching stones, issue #21)")->capture_default_str();
   cmd->add_option("--seed", args->seed, "site seed (same seed, same site and sensor data)")->capture_default_str();
   cmd->add_flag("--overwrite", args->overwrite, "replace the object database of an earlier run in --out");

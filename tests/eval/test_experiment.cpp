@@ -15,6 +15,7 @@
 #include <cstdio>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <set>
 
@@ -22,6 +23,7 @@
 #include "cairn/objects/object_db.hpp"
 #include "cairn/report/report.hpp"
 #include "support/browser.hpp"
+#include "support/test_data.hpp"
 
 namespace cairn::eval {
 namespace {
@@ -123,11 +125,26 @@ TEST(Experiment, Exp1RegistersPlansGraspsAndDetectsEveryFailure) {
   ExperimentConfig c = short_exp1(3, "cairn_test_experiment");
   c.inject_friction = 0.02;  // the first grasp cannot hold its stone: detected, then tried again
   c.inject_move = 1;
+  c.trials_dir = test::temp_dir("experiment_trials");
   const ExperimentResult r = run_experiment(c);
   for (const std::string& n : r.notes) std::printf("note: %s\n", n.c_str());
   const nlohmann::json j = to_json(r);
   for (const char* key : {"experiment", "seed", "registration", "grasps", "rounds", "timings_ms"})
     EXPECT_TRUE(j.contains(key)) << key;
+  // Every physics trial written beside the summary, with its placement's truth; a stone held
+  // to its target was weighed (placing by weight, the default).
+  for (const GraspRecord& g : r.grasps) {
+    if (g.failure_reasons == std::vector<std::string>{"no_grasp"}) continue;
+    const auto file = c.trials_dir / ("round" + std::to_string(g.round) + "_stone" + std::to_string(g.stone) +
+                                      "_attempt" + std::to_string(g.attempt) + ".json");
+    std::ifstream in(file);
+    ASSERT_TRUE(in.good()) << file;
+    const nlohmann::json trial = nlohmann::json::parse(in);
+    EXPECT_TRUE(trial.at("placement").contains("weighed_com")) << file;
+    if (g.success) {
+      EXPECT_GE(g.place_correction_m, 0.0) << file;
+    }
+  }
   std::printf("timings [ms]: %s\n", j.at("timings_ms").dump().c_str());
   ASSERT_EQ(r.rounds.size(), 1u);
   ASSERT_FALSE(r.grasps.empty());

@@ -16,13 +16,9 @@
 #include <vector>
 
 #include "support/process.hpp"
+#include "support/test_data.hpp"
 
 namespace cairn::test {
-
-inline bool in_ci() {
-  const char* ci = std::getenv("CI");
-  return ci && *ci && std::string(ci) != "false";
-}
 
 inline std::optional<std::string> find_chromium() {
   for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome"})

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <set>
@@ -16,6 +18,7 @@
 #include "cairn/objects/support.hpp"
 #include "cairn/registration/scale_recovery.hpp"
 #include "cairn/sim/drone.hpp"
+#include "cairn/sim/physics/grasp_json.hpp"
 #include "cairn/mapping/map_edit.hpp"
 #include "cairn/sim/world.hpp"
 #include "cairn/core/units.hpp"
@@ -26,6 +29,27 @@ namespace {
 
 using Eigen::Isometry3d;
 using Vec2d = Eigen::Vector2d;
+
+// The ground under a target (Experiment::ground_height): the search radius grows to at most this
+// many times experiment.ground_radius until this many map points lie within it; the plane is
+// fitted to the points this close to it (stones, ghosts left out), this many times.
+constexpr double kGroundWidening = 4.0;
+constexpr std::size_t kMinGroundPoints = 10;
+constexpr double kGroundTrim = 0.1;  // [m]
+constexpr int kGroundTrimPasses = 3;
+
+/// Least-squares plane z = a + b x + c y through the points (at least 3, not collinear): (a, b, c);
+/// a flat plane at the median height when the fit is degenerate.
+Eigen::Vector3d fit_height_plane(const std::vector<Vec3d>& p) {
+  Eigen::MatrixXd A(p.size(), 3);
+  Eigen::VectorXd z(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) A.row(Eigen::Index(i)) << 1.0, p[i].x(), p[i].y(), z[Eigen::Index(i)] = p[i].z();
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
+  if (qr.rank() == 3) return qr.solve(z);
+  std::vector<double> h(z.data(), z.data() + z.size());
+  std::nth_element(h.begin(), h.begin() + long(h.size() / 2), h.end());
+  return {h[h.size() / 2], 0.0, 0.0};
+}
 
 /// The cloud thinned to `voxel` (the report's scene): positions only.
 PointCloud thin(const PointCloud& c, double voxel) {
@@ -166,8 +190,10 @@ class Experiment {
   [[nodiscard]] double ground_height(const PointCloud& map, const Vec2d& xy, double fallback) const;
   [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
   [[nodiscard]] GraspPlan command(const grasp::GraspPlanning& p, const ObjectRecord& obj, const PointCloud& map,
-                                 const Vec2d& target, int stone, double t0) const;
+                                 const Vec2d& target, int stone, double t0, GraspRecord& g) const;
   sim::GraspTrialResult execute(const GraspPlan& plan, int attempt, GraspRecord& g);
+  grasp::GraspPlanning plan(const ObjectRecord& obj, const PointCloud& map, int stone, GraspRecord& g);
+  void write_trial(const sim::GraspTrialResult& r, const GraspRecord& g) const;
   void release_and_rescan(int round, int attempt, Tracker::Tracked& tr, const sim::GraspTrialResult& r,
                           const Isometry3d& T_MG_grasp, double t0, MoveRecord& mv, const Isometry3d& E,
                           const GraspDetection& d);
@@ -300,16 +326,39 @@ std::optional<Vec2d> Experiment::free_target(int round, const ObjectRecord& obj,
   return std::nullopt;
 }
 
-/// The ground's height at xy from the map: the median of the map points within ground_radius.
+/// The ground's height at xy from the map: a plane fitted to the map points within ground_radius
+/// (the radius doubled, up to kGroundWidening times, while fewer than kMinGroundPoints lie
+/// within it: a target beyond the stones lies in their LiDAR shadow) that lie within kGroundTrim
+/// of it (stones and ghosts left out), its height at xy. Without enough points: `fallback`.
 double Experiment::ground_height(const PointCloud& map, const Vec2d& xy, double fallback) const {
-  std::vector<double> z;
-  for (std::size_t i = 0; i < map.size(); ++i) {
-    const Vec3d p = map.world(i);
-    if ((p.head<2>() - xy).norm() <= c_.ground_radius) z.push_back(p.z());
+  std::vector<Vec3d> near;
+  for (double r = c_.ground_radius; r <= kGroundWidening * c_.ground_radius && near.size() < kMinGroundPoints; r *= 2.0) {
+    near.clear();
+    for (std::size_t i = 0; i < map.size(); ++i) {
+      const Vec3d p = map.world(i);
+      if ((p.head<2>() - xy).norm() <= r) near.emplace_back(p.x() - xy.x(), p.y() - xy.y(), p.z());
+    }
   }
-  if (z.size() < 10) return fallback;
-  std::nth_element(z.begin(), z.begin() + long(z.size() / 2), z.end());
-  return z[z.size() / 2];
+  if (near.size() < kMinGroundPoints) {
+    spdlog::debug("demo: ground at ({:.2f}, {:.2f}): {} map points, the object's underside instead", xy.x(), xy.y(),
+                  near.size());
+    return fallback;
+  }
+  // z = a + b x + c y about xy, from a flat start at the lower quartile (stones stand above the
+  // ground, and may be most of the points), refitted to the points near it.
+  std::vector<double> z;
+  for (const Vec3d& p : near) z.push_back(p.z());
+  std::nth_element(z.begin(), z.begin() + long(z.size() / 4), z.end());
+  Eigen::Vector3d plane(z[z.size() / 4], 0.0, 0.0);
+  for (int pass = 0; pass < kGroundTrimPasses; ++pass) {
+    std::vector<Vec3d> band;
+    for (const Vec3d& p : near)
+      if (std::abs(p.z() - (plane[0] + plane[1] * p.x() + plane[2] * p.y())) <= kGroundTrim) band.push_back(p);
+    if (band.size() < kMinGroundPoints) break;
+    plane = fit_height_plane(band);
+  }
+  spdlog::debug("demo: ground at ({:.2f}, {:.2f}): {} map points, {:.3f} m", xy.x(), xy.y(), near.size(), plane[0]);
+  return plane[0];
 }
 
 /// The registration's merged object at this object (first move after the drone flew), else the
@@ -343,22 +392,60 @@ void cut(PointCloud& cloud, const std::vector<MapEdit>& edits) {
   }
 }
 
+/// The truth a placement is scored against (map frame): the stone's centroid and lowest point
+/// before the pick, the terrain's height under the target.
+struct PlaceTruth {
+  Vec3d centroid = Vec3d::Zero();
+  Vec3d world_centroid = Vec3d::Zero();  // the same in the world (the weighing's frame)
+  double bottom = 0.0, ground = 0.0;
+};
+
+PlaceTruth place_truth(const sim::Site& site, int k, const Isometry3d& E, const Vec2d& target) {
+  const sim::Stone& stone = site.stones[std::size_t(k)];
+  PlaceTruth t{.centroid = E.inverse() * stone.centroid,
+               .world_centroid = stone.centroid,
+               .bottom = std::numeric_limits<double>::infinity()};
+  for (std::size_t i = 0; i < stone.mesh.vertices.size(); ++i)
+    t.bottom = std::min(t.bottom, (E.inverse() * stone.mesh.vertices.world(i)).z());
+  const Vec3d w = E * Vec3d(target.x(), target.y(), 0.0);
+  t.ground = (E.inverse() * Vec3d(w.x(), w.y(), site.terrain.height(w.x(), w.y()))).z();
+  return t;
+}
+
+/// Where the target error of a carried stone comes from (GraspRecord's placement breakdown).
+void score_placement(const PlaceTruth& truth, const Vec3d& mass_centroid, const sim::GraspTrialResult& r,
+                     GraspRecord& g) {
+  g.place_ground_error_m = g.place_ground_z - truth.ground;
+  g.place_bottom_error_m = g.place_bottom_z - truth.bottom;
+  if (!r.released_centroid.allFinite()) return;
+  g.com_estimate_error_m = (mass_centroid - truth.centroid).head<2>().norm();
+  if (r.weighed_com.allFinite()) {
+    g.weighed_com_error_m = (r.weighed_com - truth.world_centroid).head<2>().norm();  // the lift is straight up
+    g.place_correction_m = r.place_correction;
+  }
+  g.grip_drift_m = r.grip_drift;
+  g.release_drift_m = (r.rest_centroid - r.released_centroid).head<2>().norm();
+}
+
 /// The command of one attempt: grasp `best` where it was planned, then the stone's centre of mass
 /// as the planner estimates it (Sec. 5.2: the planning cloud with the unseen side completed) over
 /// the target, lowered until contact (place_depth below the contact the map predicts: the ground
 /// under the target vs the object's underside). Poses in the world, commanded from the map at t0.
 GraspPlan Experiment::command(const grasp::GraspPlanning& p, const ObjectRecord& obj, const PointCloud& map,
-                              const Vec2d& target, int stone, double t0) const {
+                              const Vec2d& target, int stone, double t0, GraspRecord& g) const {
   const ScanningMachine& m = tracker_.machine();
   const grasp::Grasp& best = p.grasps.front();
-  const double bottom = low_z(obj.cloud, 0.02);
-  const double dz = ground_height(map, target, bottom) - bottom - c_.place_depth;
+  g.place_bottom_z = low_z(obj.cloud, 0.02);
+  g.place_ground_z = ground_height(map, target, g.place_bottom_z);
+  const double dz = g.place_ground_z - g.place_bottom_z - c_.place_depth;
   const Vec2d shift = target - p.cloud.mass_centroid.head<2>();
   const Isometry3d T_MG_place = Eigen::Translation3d(shift.x(), shift.y(), dz) * best.T_map_gripper;
   GraspPlan plan = grasp::to_grasp_plan(best, GraspPlan{});
   plan.lift_height = c_.lift_height;
   plan.T_world_gripper = m.E_state(t0) * best.T_map_gripper;
   plan.T_world_place = m.E_state(t0 + c_.tracking.carry_time) * T_MG_place;
+  if (c_.place_by_weight)
+    plan.place_com_xy = (m.E_state(t0 + c_.tracking.carry_time) * Vec3d(target.x(), target.y(), g.place_ground_z)).head<2>();
   plan.target_stone = stone;  // the physics' truth: grasping another stone is a failure
   return plan;
 }
@@ -389,7 +476,17 @@ sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, Gr
   g.success = r.success;
   g.failure_reasons = r.failure_reasons;
   g.place_error_m = r.place_error;
+  if (!c_.trials_dir.empty()) write_trial(r, g);
   return r;
+}
+
+void Experiment::write_trial(const sim::GraspTrialResult& r, const GraspRecord& g) const {
+  std::filesystem::create_directories(c_.trials_dir);
+  const std::filesystem::path file = c_.trials_dir / ("round" + std::to_string(g.round) + "_stone" +
+                                                      std::to_string(g.stone) + "_attempt" + std::to_string(g.attempt) + ".json");
+  std::ofstream f(file);
+  f << sim::to_json(r).dump() << "\n";
+  if (!f) throw InputError(file.string() + ": cannot write the trial");
 }
 
 /// Release (Eq. 3): where the arm opened the jaws when the machine measured the stone still held
@@ -412,6 +509,32 @@ void Experiment::release_and_rescan(int round, int attempt, Tracker::Tracked& tr
   tracker_.result.moves.push_back(mv);
 }
 
+/// Plans on what the machine senses (Sec. 5.2: the merged LiDAR + drone object and the drone cloud
+/// for a stone's first move, the database's cloud afterwards); the best grasp's figures, or
+/// no_grasp, go into `g` (no_grasp: recorded as a detected failure).
+grasp::GraspPlanning Experiment::plan(const ObjectRecord& obj, const PointCloud& map, int stone, GraspRecord& g) {
+  const bool first = drone_ && !moved_[std::size_t(stone)];
+  const PointCloud& model = first ? planning_model(obj) : obj.cloud;
+  grasp::GraspPlanning p =
+      grasp::plan_grasps(map, model, first ? &*drone_ : nullptr, tracker_.machine().config().gripper, c_.grasp);
+  g.planning_ms = p.timings_ms.at("total");
+  planning_ms_ += g.planning_ms;
+  g.force_closure = p.counts.force_closure;
+  if (p.grasps.empty()) {
+    g.failure_reasons = {"no_grasp"};
+    g.detection.failed = g.detected = true;
+    g.detection.signs = {"no_grasp"};
+    out.grasps.push_back(g);
+    return p;
+  }
+  const grasp::Grasp& best = p.grasps.front();
+  g.costs = best.costs;
+  g.normalized_costs = grasp::normalized_costs(p);
+  g.T_map_gripper = best.T_map_gripper;
+  g.opening = best.opening;
+  return p;
+}
+
 /// One attempt at moving the stone to `target`: plan on what the machine senses, execute in the
 /// physics, update the database (Eq. 3), rescan and re-align. True when the machine sees the
 /// object at its target.
@@ -422,33 +545,21 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   const PointCloud map = m.mapper().map();
   const auto before = tracker_.truth();
   const Isometry3d E = before->offset->map_offset(map);  // scoring only
-  const bool first = drone_ && !moved_[std::size_t(tr.stone)];
-  const PointCloud& model = first ? planning_model(obj) : obj.cloud;
-  const grasp::GraspPlanning p =
-      grasp::plan_grasps(map, model, first ? &*drone_ : nullptr, m.config().gripper, c_.grasp);
-  g.planning_ms = p.timings_ms.at("total");
-  planning_ms_ += g.planning_ms;
-  g.force_closure = p.counts.force_closure;
+  const grasp::GraspPlanning p = plan(obj, map, tr.stone, g);
   if (p.grasps.empty()) {  // the machine knows: rescan (one swing) and plan again
-    g.failure_reasons = {"no_grasp"};
-    g.detection.failed = g.detected = true;
-    g.detection.signs = {"no_grasp"};
-    out.grasps.push_back(g);
     m.scan(m.now(), m.now() + c_.tracking.rescan);
     return false;
   }
   const grasp::Grasp& best = p.grasps.front();
-  g.costs = best.costs;
-  g.normalized_costs = grasp::normalized_costs(p);
-  g.T_map_gripper = best.T_map_gripper;
-  g.opening = best.opening;
   MoveRecord mv{.round = round, .stone = tr.stone, .object = tr.object, .purity = tr.purity, .time = m.now()};
   const Operation grasp_op = tracker_.commit_grasp(mv, tr, best.T_map_gripper, map, *before, E);
   if (drone_) cut(*drone_, grasp_op.map_edits);
   // The object's stored motion from here on carries the planned centre of mass; the rescan checks where it went.
   const Isometry3d A_before = db_motion(tracker_.db().history(tr.object));
   const double t0 = m.now();
-  const sim::GraspTrialResult r = execute(command(p, obj, map, target, tr.stone, t0), attempt, g);
+  const PlaceTruth truth = place_truth(m.world().site, tr.stone, E, target);  // scoring only
+  const sim::GraspTrialResult r = execute(command(p, obj, map, target, tr.stone, t0, g), attempt, g);
+  score_placement(truth, p.cloud.mass_centroid, r, g);
   g.detection = detect_grasp_failure(r, c_.detection);
   release_and_rescan(round, attempt, tr, r, best.T_map_gripper, t0, mv, E, g.detection);
   g.move = mv;
@@ -723,7 +834,15 @@ nlohmann::json to_json(const ExperimentResult& r) {
                       {"costs", {{"align_rad", x.costs.align}, {"enclose_m", x.costs.enclose}, {"dist_m", x.costs.dist}}},
                       {"T_map_gripper", pose_to_json(x.T_map_gripper)}, {"target", {x.target.x(), x.target.y()}},
                       {"target_error_m", or_null(x.target_error_m)}, {"sim_time_s", x.sim_time}, {"wall_s", x.wall_s},
-                      {"place_error_m", or_null(x.place_error_m)}, {"others_moved_m", x.others_moved_m},
+                      {"place_error_m", or_null(x.place_error_m)},
+                      {"placement", {{"com_estimate_error_m", or_null(x.com_estimate_error_m)},
+                                     {"grip_drift_m", or_null(x.grip_drift_m)},
+                                     {"release_drift_m", or_null(x.release_drift_m)},
+                                     {"weighed_com_error_m", or_null(x.weighed_com_error_m)},
+                                     {"place_correction_m", or_null(x.place_correction_m)},
+                                     {"ground_error_m", x.place_ground_error_m},
+                                     {"bottom_error_m", x.place_bottom_error_m}}},
+                      {"others_moved_m", x.others_moved_m},
                       {"others_loaded", x.others_loaded},
                       {"database", {{"predicted_error_m", x.move.predicted_error_m},
                                     {"predicted_error_deg", x.move.predicted_error_deg},

@@ -20,6 +20,7 @@
 // never from the simulator's truth; the machine then rescans, re-aligns the object where it now
 // lies and plans again (at most max_attempts). Detection is scored against the physics' truth.
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -73,9 +74,14 @@ struct ExperimentConfig {
   double lift_height = 1.6;        // [m] carried above the grasp (clears the other stones)
   double place_depth = 0.1;        // [m] commanded below the expected contact: lowering stops on it
   double ground_radius = 0.6;      // [m] map points this close (xy) give a target's ground height
+                                   // (a plane; the radius widened up to 4x where the map is sparse)
   /// Lowering ends when the ground carries this share of the stone's weight (the arm's load has
   /// fallen to the rest): the stone sits before the jaws open (PhysicsConfig::place_support_fraction).
   double place_support = 0.8;
+  /// Placing by weight (beyond the paper): the arm weighs the stone while it hangs still after
+  /// the lift and sets its measured centre of mass, not the planner's estimate, on the target
+  /// (GraspPlan::place_com_xy). Off: the paper's placement by the gripper pose alone.
+  bool place_by_weight = true;
   /// Clearing a pile (issue #21): a stone still on the pile whose surface moved more than this
   /// during a move (truth: scoring only) counts as the pile having shifted.
   double pile_shift = 0.05;  // [m]
@@ -88,6 +94,10 @@ struct ExperimentConfig {
   /// 2nd, the 4th and the last stone; every round's end is captured too).
   double scene_voxel = 0.08;  // [m]
   std::vector<int> scene_after_moves = {2, 4};
+  /// When set, every physics trial (its phases, the jaw and load traces, the placement's truth)
+  /// is written there as `round<R>_stone<S>_attempt<A>.json` (sim::to_json); `cairn demo` sets
+  /// it to `--out`/trials.
+  std::filesystem::path trials_dir;
   SlipDetectionConfig detection;
   /// Scans, database, mapping, segmentation, objects, the simulated site (its physics and gripper).
   ObjectTrackingConfig tracking;
@@ -113,6 +123,7 @@ struct ExperimentConfig {
     v("place_depth", place_depth, "[m] commanded below the expected contact (lowering stops on contact)");
     v("ground_radius", ground_radius, "[m] map points this close give a target's ground height");
     v("place_support", place_support, "lowering ends when the ground carries this share of the weight");
+    v("place_by_weight", place_by_weight, "set the weighed centre of mass (not the planner's) on the target");
     v("pile_shift", pile_shift, "[m] pile: a stone left on it moved this much during a move: the pile shifted");
     v("inject_friction", inject_friction, "tests: friction for one grasp (0: off)");
     v("inject_move", inject_move, "tests: the move (1-based) whose first grasp gets inject_friction");
@@ -166,6 +177,20 @@ struct GraspRecord {
   double target_error_m = -1.0;  // true centroid (map frame) to the target, xy; -1: not planned
   double sim_time = 0.0, wall_s = 0.0;
   double place_error_m = -1.0;  // physics: the stone at release vs where the gripper put it (truth)
+  /// Where a carried stone's target error comes from (truth, horizontal, -1 when not carried):
+  /// the planner's centre of mass vs the stone's (the command places the former over the
+  /// target), the stone's motion in the grip from the lift to the jaws' opening, and its motion
+  /// from the opening to rest (tipping or rolling off the release).
+  double com_estimate_error_m = -1.0, grip_drift_m = -1.0, release_drift_m = -1.0;
+  /// Placing by weight: the weighed centre of mass vs the stone's before the grasp (truth, xy, in
+  /// the world: the machine's state estimate not involved) and the
+  /// shift of the place pose it commanded (-1: not weighed).
+  double weighed_com_error_m = -1.0, place_correction_m = -1.0;
+  /// The lowering's command (map frame z): the ground under the target and the object's underside
+  /// as the machine estimates them, and their errors against the truth (terrain height at the
+  /// target, the stone's lowest vertex at the pick; positive: estimated too high) [m].
+  double place_ground_z = 0.0, place_bottom_z = 0.0;
+  double place_ground_error_m = 0.0, place_bottom_error_m = 0.0;
   MoveRecord move;              // the database's side: Eq. 3 prediction, re-alignment, errors, ghosts
   /// Truth: the largest surface displacement of a stone not yet moved (other than the grasped
   /// one) during this attempt; on a pile, above pile_shift the pile shifted.
