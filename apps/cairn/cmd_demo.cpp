@@ -34,10 +34,11 @@ void prepare_out(const std::filesystem::path& out, bool overwrite) {
     throw InputError(out.string() + ": exists and is not a directory");
   std::filesystem::create_directories(out);
   const std::filesystem::path db = out / "objects.db";
-  if (!std::filesystem::exists(db)) return;
-  if (!overwrite) throw InputError(db.string() + ": exists (an earlier run's database; use --overwrite to replace it)");
-  for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(db.string() + side);
-  std::filesystem::remove_all(out / "trials");  // the earlier run's physics trials
+  if (std::filesystem::exists(db)) {
+    if (!overwrite) throw InputError(db.string() + ": exists (an earlier run's database; use --overwrite to replace it)");
+    for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(db.string() + side);
+  }
+  std::filesystem::remove_all(out / "trials");  // an earlier run's physics trials
 }
 
 int run_demo(const DemoArgs& a) {

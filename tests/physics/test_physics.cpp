@@ -127,7 +127,7 @@ TEST(GraspTrial, PlacingByWeightPutsTheCentreOfMassOnTheTarget) {
   const GraspTrialResult weighed = run_grasp_trial(site, plan, gripper, fast_config());
   ASSERT_TRUE(weighed.success) << weighed.message;
   ASSERT_TRUE(weighed.weighed_com.allFinite());
-  // The truth: where the box's centre hung at the end of the hold (it swings in about the jaw axis).
+  // The truth: where the box's centre hung in the hold (it swings in about the jaw axis first).
   const std::vector<TraceSample> hold = trace_in(weighed, "hold");
   ASSERT_FALSE(hold.empty());
   const Isometry3d lifted = Eigen::Translation3d(0, 0, plan.lift_height) * plan.T_world_gripper;

@@ -43,7 +43,10 @@ constexpr int kGroundTrimPasses = 3;
 Eigen::Vector3d fit_height_plane(const std::vector<Vec3d>& p) {
   Eigen::MatrixXd A(p.size(), 3);
   Eigen::VectorXd z(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) A.row(Eigen::Index(i)) << 1.0, p[i].x(), p[i].y(), z[Eigen::Index(i)] = p[i].z();
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    A.row(Eigen::Index(i)) << 1.0, p[i].x(), p[i].y();
+    z[Eigen::Index(i)] = p[i].z();
+  }
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
   if (qr.rank() == 3) return qr.solve(z);
   std::vector<double> h(z.data(), z.data() + z.size());
@@ -74,8 +77,9 @@ void validate(const ExperimentConfig& c) {
   if (c.rounds < 0 || c.max_attempts < 1) throw ConfigError("experiment: rounds >= 0 and max_attempts >= 1 required");
   if (!(c.registration_period > 0) || !(c.registration_timeout >= c.registration_period))
     throw ConfigError("experiment: registration_period > 0 and registration_timeout >= registration_period required");
-  if (!(c.row_spacing > 0) || !(c.lift_height > 0) || !(c.place_depth >= 0) || !(c.ground_radius > 0))
-    throw ConfigError("experiment: row_spacing, lift_height, ground_radius > 0 and place_depth >= 0 required");
+  if (!(c.row_spacing > 0) || !(c.lift_height > 0) || !(c.place_depth >= 0) || !(c.ground_radius > 0) ||
+      !std::isfinite(c.ground_radius))
+    throw ConfigError("experiment: row_spacing, lift_height, ground_radius > 0 (finite) and place_depth >= 0 required");
   const SlipDetectionConfig& d = c.detection;
   if (!(d.min_load >= 0) || !(d.load_drop > 0 && d.load_drop < 1) || !(d.jaw_travel > 0) || !(d.target_tolerance > 0))
     throw ConfigError("experiment detection: min_load >= 0, load_drop in (0, 1), positive jaw_travel and target_tolerance");
@@ -482,8 +486,7 @@ sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, Gr
 
 void Experiment::write_trial(const sim::GraspTrialResult& r, const GraspRecord& g) const {
   std::filesystem::create_directories(c_.trials_dir);
-  const std::filesystem::path file = c_.trials_dir / ("round" + std::to_string(g.round) + "_stone" +
-                                                      std::to_string(g.stone) + "_attempt" + std::to_string(g.attempt) + ".json");
+  const std::filesystem::path file = c_.trials_dir / trial_file_name(g);
   std::ofstream f(file);
   f << sim::to_json(r).dump() << "\n";
   if (!f) throw InputError(file.string() + ": cannot write the trial");
@@ -558,7 +561,9 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   const Isometry3d A_before = db_motion(tracker_.db().history(tr.object));
   const double t0 = m.now();
   const PlaceTruth truth = place_truth(m.world().site, tr.stone, E, target);  // scoring only
-  const sim::GraspTrialResult r = execute(command(p, obj, map, target, tr.stone, t0, g), attempt, g);
+  // The command from the map without the grasped object (its voxels just removed): a target near
+  // the stone's own place would otherwise find the stone for the ground.
+  const sim::GraspTrialResult r = execute(command(p, obj, m.mapper().map(), target, tr.stone, t0, g), attempt, g);
   score_placement(truth, p.cloud.mass_centroid, r, g);
   g.detection = detect_grasp_failure(r, c_.detection);
   release_and_rescan(round, attempt, tr, r, best.T_map_gripper, t0, mv, E, g.detection);

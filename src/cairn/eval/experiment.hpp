@@ -95,8 +95,8 @@ struct ExperimentConfig {
   double scene_voxel = 0.08;  // [m]
   std::vector<int> scene_after_moves = {2, 4};
   /// When set, every physics trial (its phases, the jaw and load traces, the placement's truth)
-  /// is written there as `round<R>_stone<S>_attempt<A>.json` (sim::to_json); `cairn demo` sets
-  /// it to `--out`/trials.
+  /// is written there as trial_file_name(record) (sim::to_json); `cairn demo` sets it to
+  /// `--out`/trials.
   std::filesystem::path trials_dir;
   SlipDetectionConfig detection;
   /// Scans, database, mapping, segmentation, objects, the simulated site (its physics and gripper).
@@ -197,6 +197,13 @@ struct GraspRecord {
   double others_moved_m = 0.0;
   int others_loaded = 0;  // the machine's view at the pick: objects resting on the grasped one
 };
+
+/// The file a trial of `g` is written to under ExperimentConfig::trials_dir (the object id keeps
+/// two objects of one stone apart).
+inline std::string trial_file_name(const GraspRecord& g) {
+  return "round" + std::to_string(g.round) + "_object" + std::to_string(g.object) + "_stone" + std::to_string(g.stone) +
+         "_attempt" + std::to_string(g.attempt) + ".json";
+}
 
 struct ExperimentObject {
   std::int64_t object = 0;

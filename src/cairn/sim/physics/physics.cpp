@@ -78,6 +78,10 @@ double path_length(const Isometry3d& a, const Isometry3d& b, const std::optional
 
 double rotation_angle(const Matrix3d& R) { return Eigen::AngleAxisd(R).angle(); }
 
+/// Placing by weight: the load cell is read over the hold after the lift from this share of it on
+/// (the stone first swings into the grip about the jaw axis).
+constexpr double kWeighAfter = 0.5;
+
 Isometry3d translated_world(const Isometry3d& T, const Vector3d& d) {
   Isometry3d out = T;
   out.translation() += d;
@@ -273,7 +277,10 @@ class Trial {
       // Carrying: the simulator's verdicts, and the arm's own force limit (it stalls where it is).
       const auto carry = [&](bool lifting) { return keep(transport_ok(lifting)) && !arm_stalled(); };
       ok = phase("lift", [&] { return move(lifted, c_.lift_speed, false, [&] { return carry(true); }); }) &&
-           phase("hold", [&] { return wait(c_.hold_time, [&] { weigh(); return carry(false); }); }) &&
+           phase("hold", [&] {
+             const double from = scene_.time();
+             return wait(c_.hold_time, [&] { weigh(from); return carry(false); });
+           }) &&
            grip_settled() && place_by_weight() &&
            phase("move", [&] {
              const Isometry3d above_place = translated_world(place_, plan_.lift_height * Vector3d::UnitZ());
@@ -315,7 +322,7 @@ class Trial {
     });
 
     for (int k = 0; k < scene_.num_stones(); ++k) r_.stone_poses.push_back(scene_.stone_pose(k));
-    if (lifted_ && r_.grasped_stone >= 0) r_.rest_centroid = scene_.stone_body_pose(r_.grasped_stone).translation();
+    if (r_.released_centroid.allFinite()) r_.rest_centroid = scene_.stone_body_pose(r_.grasped_stone).translation();
     if (ok && r_.grasped_stone >= 0) {
       const Isometry3d expected = place_ * plan_.T_world_gripper.inverse() * stone_at_lift_;
       r_.place_error = (scene_.stone_body_pose(r_.grasped_stone).translation() - expected.translation()).norm();
@@ -614,9 +621,10 @@ class Trial {
     return false;
   }
 
-  /// The ground (terrain or other stones) carries enough of the carried stone's weight.
-  /// The load cell while the stone hangs still after the lift (summed; averaged by place_by_weight).
-  void weigh() {
+  /// The load cell in the second half of the hold after the lift (`from`: its start), when the
+  /// stone has swung into the grip and hangs still (summed; averaged by place_by_weight).
+  void weigh(double from) {
+    if (scene_.time() - from < kWeighAfter * c_.hold_time) return;
     weighed_load_ += scene_.arm_load();
     weighed_moment_ += scene_.arm_moment();
     weighed_samples_ += 1;
@@ -632,9 +640,9 @@ class Trial {
     if (!(load > c_.weigh_min_load)) return true;  // nothing to weigh: the plan's place pose
     const Vector3d moment = weighed_moment_ / weighed_samples_;
     const Vector3d r(-moment.y() / load, moment.x() / load, 0.0);
-    const Isometry3d held = scene_.gripper_pose();
-    r_.weighed_com = held.translation() + r;
-    const Eigen::Matrix3d turn = place_.linear() * held.linear().transpose();
+    if (!r.allFinite()) return true;
+    r_.weighed_com = scene_.gripper_pose().translation() + r;
+    const Eigen::Matrix3d turn = place_.linear() * target_.linear().transpose();  // commanded to commanded
     const Vector2d landing = place_.translation().head<2>() + (turn * r).head<2>();
     Vector2d shift = *plan_.place_com_xy - landing;
     if (shift.norm() > c_.max_place_correction) shift *= c_.max_place_correction / shift.norm();
@@ -658,17 +666,18 @@ class Trial {
     }
   }
 
-  /// Lowering to place: the load the arm carried (weighed in the hold after the lift; after a
-  /// stall before it, the load as lowering begins) and its low-passed value from here on.
+  /// Lowering to place: the load the arm carried (weighed in the hold after the lift) and its
+  /// low-passed value from here on.
   void start_lowering() {
-    load_lp_ = scene_.arm_load();
-    carried_load_ = weighed_samples_ > 0 ? weighed_load_ / weighed_samples_ : load_lp_;
+    carried_load_ = weighed_samples_ > 0 ? weighed_load_ / weighed_samples_ : 0.0;
+    load_lp_ = carried_load_;
   }
 
   /// The machine's sign that the stone sits on the ground: the arm's load, low-passed like the
   /// stall check (a first touch of a corner rings the stiff contacts for a few steps), has fallen
   /// by place_support_fraction of the load it carried.
   bool set_down() {
+    if (!(carried_load_ > 0.0)) return ground_carries();  // not weighed (a stall in the lift): the contacts
     load_lp_ += std::min(1.0, c_.timestep / c_.arm_stall_time) * (scene_.arm_load() - load_lp_);
     return load_lp_ < (1.0 - c_.place_support_fraction) * carried_load_;
   }
