@@ -821,6 +821,7 @@ nlohmann::json detection_json(const GraspDetection& d) {
           {"release_load_n", d.release_load}, {"jaw_travel_m", d.jaw_travel}, {"held_at_release", d.held_at_release}};
 }
 nlohmann::json or_null(double v) { return v >= 0 ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 }  // namespace
 
 nlohmann::json to_json(const ExperimentResult& r) {
@@ -845,8 +846,8 @@ nlohmann::json to_json(const ExperimentResult& r) {
                                      {"release_drift_m", or_null(x.release_drift_m)},
                                      {"weighed_com_error_m", or_null(x.weighed_com_error_m)},
                                      {"place_correction_m", or_null(x.place_correction_m)},
-                                     {"ground_error_m", x.place_ground_error_m},
-                                     {"bottom_error_m", x.place_bottom_error_m}}},
+                                     {"ground_error_m", finite_or_null(x.place_ground_error_m)},
+                                     {"bottom_error_m", finite_or_null(x.place_bottom_error_m)}}},
                       {"others_moved_m", x.others_moved_m},
                       {"others_loaded", x.others_loaded},
                       {"database", {{"predicted_error_m", x.move.predicted_error_m},

@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -190,7 +191,8 @@ struct GraspRecord {
   /// as the machine estimates them, and their errors against the truth (terrain height at the
   /// target, the stone's lowest vertex at the pick; positive: estimated too high) [m].
   double place_ground_z = 0.0, place_bottom_z = 0.0;
-  double place_ground_error_m = 0.0, place_bottom_error_m = 0.0;
+  double place_ground_error_m = std::numeric_limits<double>::quiet_NaN();  // NaN: nothing commanded
+  double place_bottom_error_m = std::numeric_limits<double>::quiet_NaN();
   MoveRecord move;              // the database's side: Eq. 3 prediction, re-alignment, errors, ghosts
   /// Truth: the largest surface displacement of a stone not yet moved (other than the grasped
   /// one) during this attempt; on a pile, above pile_shift the pile shifted.
