@@ -68,14 +68,20 @@ PhysicsConfig fast_config() {
   return c;
 }
 
+/// The centred grasp of flat_box_site()'s box, set down 1.5 m along x and 0.5 m along y, turned by `yaw`.
+GraspPlan box_plan(const Site& site, const GripperConfig& gripper, double yaw) {
+  CentredGraspOptions o;
+  o.place_offset = {1.5, 0.5};
+  o.place_yaw = yaw;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.target_stone = 0;
+  return plan;
+}
+
 TEST(GraspTrial, CentredAntipodalGraspOnBoxSucceedsAndPlaces) {
   const Site site = flat_box_site();
   const GripperConfig gripper;
-  CentredGraspOptions o;
-  o.place_offset = {1.5, 0.5};
-  o.place_yaw = 0.4;
-  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
-  plan.target_stone = 0;
+  const GraspPlan plan = box_plan(site, gripper, 0.4);
   // The shortest horizontal extent of the box is along y.
   EXPECT_NEAR(std::abs(plan.T_world_gripper.linear().col(1).y()), 1.0, 1e-9);
   const GraspTrialResult r = run_grasp_trial(site, plan, gripper, fast_config());
@@ -106,11 +112,7 @@ std::vector<TraceSample> trace_in(const GraspTrialResult& r, const std::string& 
 TEST(GraspTrial, PlacingByWeightPutsTheCentreOfMassOnTheTarget) {
   const Site site = flat_box_site();
   const GripperConfig gripper;
-  CentredGraspOptions o;
-  o.place_offset = {1.5, 0.5};
-  o.place_yaw = 0.6;
-  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
-  plan.target_stone = 0;
+  GraspPlan plan = box_plan(site, gripper, 0.6);
   constexpr double kOff = 0.25;  // [m] along the box's length (world x), within the jaws' height
   plan.T_world_gripper.translation().x() += kOff;  // set down where the centred grasp's gripper was
   const Vector3d c = site.stones[0].centroid;
