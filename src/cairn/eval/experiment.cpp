@@ -335,13 +335,17 @@ std::optional<Vec2d> Experiment::free_target(int round, const ObjectRecord& obj,
 /// within it: a target beyond the stones lies in their LiDAR shadow) that lie within kGroundTrim
 /// of it (stones and ghosts left out), its height at xy. Without enough points: `fallback`.
 double Experiment::ground_height(const PointCloud& map, const Vec2d& xy, double fallback) const {
+  std::vector<Vec3d> widest;  // one pass over the map: the points within the largest radius, about xy
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Vec3d p = map.world(i);
+    if ((p.head<2>() - xy).norm() <= kGroundWidening * c_.ground_radius)
+      widest.emplace_back(p.x() - xy.x(), p.y() - xy.y(), p.z());
+  }
   std::vector<Vec3d> near;
   for (double r = c_.ground_radius; r <= kGroundWidening * c_.ground_radius && near.size() < kMinGroundPoints; r *= 2.0) {
     near.clear();
-    for (std::size_t i = 0; i < map.size(); ++i) {
-      const Vec3d p = map.world(i);
-      if ((p.head<2>() - xy).norm() <= r) near.emplace_back(p.x() - xy.x(), p.y() - xy.y(), p.z());
-    }
+    for (const Vec3d& p : widest)
+      if (p.head<2>().norm() <= r) near.push_back(p);
   }
   if (near.size() < kMinGroundPoints) {
     spdlog::debug("demo: ground at ({:.2f}, {:.2f}): {} map points, the object's underside instead", xy.x(), xy.y(),
