@@ -23,6 +23,35 @@ std::size_t SegmentationScore::single(double complete, double pure) const {
   }));
 }
 
+double BinaryScore::precision() const {
+  const std::size_t predicted = true_positive + false_positive;
+  return predicted ? double(true_positive) / double(predicted) : 0.0;
+}
+
+double BinaryScore::recall() const {
+  const std::size_t positive = true_positive + false_negative;
+  return positive ? double(true_positive) / double(positive) : 0.0;
+}
+
+double BinaryScore::f1() const {
+  const double p = precision(), r = recall();
+  return p + r > 0 ? 2 * p * r / (p + r) : 0.0;
+}
+
+BinaryScore score_binary(const std::vector<std::uint8_t>& predicted, const std::vector<std::uint8_t>& truth) {
+  if (predicted.size() != truth.size())
+    throw InputError("score_binary: " + std::to_string(predicted.size()) + " predictions for " +
+                     std::to_string(truth.size()) + " truth labels");
+  BinaryScore s;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    if (predicted[i])
+      ++(truth[i] ? s.true_positive : s.false_positive);
+    else
+      ++(truth[i] ? s.false_negative : s.true_negative);
+  }
+  return s;
+}
+
 nlohmann::json SegmentationScore::to_json(double complete) const {
   nlohmann::json j{{"objects", objects.size()},
                    {"found", found(complete)},

@@ -38,6 +38,17 @@ struct SegmentationScore {
                                                    const std::vector<std::int32_t>& truth, int num_objects,
                                                    double split_fraction = 0.05);
 
+/// A binary labelling (e.g. ground / not ground) against per-point truth.
+struct BinaryScore {
+  std::size_t true_positive = 0, false_positive = 0, false_negative = 0, true_negative = 0;
+  [[nodiscard]] double precision() const;  // 0 when nothing was predicted
+  [[nodiscard]] double recall() const;     // 0 when nothing is true
+  [[nodiscard]] double f1() const;         // harmonic mean of the two; 0 when both are 0
+};
+
+/// `predicted` and `truth`: one flag per point, equal lengths (throws InputError otherwise).
+[[nodiscard]] BinaryScore score_binary(const std::vector<std::uint8_t>& predicted, const std::vector<std::uint8_t>& truth);
+
 /// Ground truth for points that carry none (e.g. a map built by the mapping stage): the label of
 /// the nearest point of a labelled reference cloud (e.g. the simulator's truth/map_snapshot.ply),
 /// or `unmatched` when that point is farther than `max_distance` [m]. Both clouds in one frame

@@ -10,6 +10,7 @@
 #include <deque>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #include "cairn/core/error.hpp"
 #include "cairn/segmentation/grid2d.hpp"
@@ -159,12 +160,14 @@ void quadratic_fill(Grid& g, const std::vector<std::uint8_t>& fixed, double radi
   });
 }
 
+constexpr int kMinFitPoints = 6;  // points for a cell's own plane fit
+
 /// Least-squares z = a + b·dx + c·dy over the points of a cell within `band` above its minimum,
-/// refit once on the points within half the band of the first fit; returns a (height at centre).
-float local_height(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx, float zmin,
-                   float band, float cx, float cy) {
-  float a = zmin + 0.5f * band;
-  Eigen::Vector3f coef(a, 0, 0);
+/// refit once on the points within half the band of the first fit; returns a (height at centre),
+/// or nothing when the cell has too few points or they lie on a line.
+std::optional<float> local_height(std::span<const Vec3f> pts, std::span<const std::uint32_t> idx, float zmin,
+                                  float band, float cx, float cy) {
+  Eigen::Vector3f coef(zmin + 0.5f * band, 0, 0);
   for (int pass = 0; pass < 2; ++pass) {
     Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
     Eigen::Vector3d atb = Eigen::Vector3d::Zero();
@@ -180,13 +183,70 @@ float local_height(std::span<const Vec3f> pts, std::span<const std::uint32_t> id
       atb += r * double(p.z());
       ++n;
     }
-    constexpr int kMinFitPoints = 6;
-    if (n < kMinFitPoints) return pass == 0 ? zmin : coef[0];
+    const bool solvable = n >= kMinFitPoints && ata.determinant() >= 1e-12;
     const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
-    if (ldlt.info() != Eigen::Success || ata.determinant() < 1e-12) return pass == 0 ? zmin : coef[0];
+    if (!solvable || ldlt.info() != Eigen::Success) {
+      if (pass == 0) return std::nullopt;
+      return coef[0];
+    }
     coef = ldlt.solve(atb).cast<float>();
   }
   return coef[0];
+}
+
+/// Height at a cell's centre from the lowest points of the terrain cells around it (3×3, itself
+/// included) when the cell cannot fit its own plane (sparse data): a plane through those points
+/// where they span one, else the cell's own lowest point. Taking the lowest point's height for the
+/// centre would put the surface half a cell × slope too low on steep ground.
+float sparse_height(const GridFrame& g, std::span<const Vec3f> pts, const std::vector<std::uint32_t>& lowest,
+                    const std::vector<std::uint8_t>& terrain, int x, int y) {
+  const float cx = g.x0 + (float(x) + 0.5f) * g.cell, cy = g.y0 + (float(y) + 0.5f) * g.cell;
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  for (int v = std::max(0, y - 1); v <= std::min(g.ny - 1, y + 1); ++v)
+    for (int u = std::max(0, x - 1); u <= std::min(g.nx - 1, x + 1); ++u) {
+      const std::size_t k = g.index(u, v);
+      if (!terrain[k]) continue;
+      const Vec3f& p = pts[lowest[k]];
+      const Eigen::Vector3d r(1.0, p.x() - cx, p.y() - cy);
+      ata += r * r.transpose();
+      atb += r * double(p.z());
+    }
+  const double scale = double(g.cell) * double(g.cell);  // determinant of well-spread points ~ n³ cell⁴
+  if (ata.determinant() < 1e-3 * scale * scale) return pts[lowest[g.index(x, y)]].z();
+  return float(ata.ldlt().solve(atb)[0]);
+}
+
+/// Slope (rise/run) of the surface per cell: the gradient's length from central differences
+/// (one-sided at the border).
+Grid slope_of(const Grid& surface) {
+  Grid out = surface;
+  const auto diff = [&](int x0, int y0, int x1, int y1) {
+    return (surface.at(x1, y1) - surface.at(x0, y0)) / (float(std::max(x1 - x0 + y1 - y0, 1)) * surface.cell);
+  };
+  for (int y = 0; y < surface.ny; ++y)
+    for (int x = 0; x < surface.nx; ++x) {
+      const float gx = surface.nx > 1 ? diff(std::max(x - 1, 0), y, std::min(x + 1, surface.nx - 1), y) : 0.0f;
+      const float gy = surface.ny > 1 ? diff(x, std::max(y - 1, 0), x, std::min(y + 1, surface.ny - 1)) : 0.0f;
+      out.at(x, y) = std::hypot(gx, gy);
+    }
+  return out;
+}
+
+/// Cells the filter took for objects whose lowest point lies in the ground band of the surface
+/// (steep ground or terraces the windows cut off) become terrain; returns how many.
+std::size_t rejoin_terrain(const Grid& surface, std::span<const Vec3f> pts, const std::vector<std::uint32_t>& lowest,
+                           const std::vector<std::uint8_t>& occupied, const GroundConfig& c,
+                           std::vector<std::uint8_t>& terrain) {
+  const Grid slope = slope_of(surface);
+  std::size_t added = 0;
+  for (std::size_t k = 0; k < terrain.size(); ++k) {
+    if (terrain[k] || !occupied[k]) continue;
+    const Vec3f& p = pts[lowest[k]];
+    const float band = float(c.d_plane + c.slope_height * slope.bilinear(p.x(), p.y()));
+    if (p.z() - surface.bilinear(p.x(), p.y()) <= band) terrain[k] = 1, ++added;
+  }
+  return added;
 }
 
 GroundResult ground_plane_method(std::span<const Vec3f> pts, const GroundConfig& c, std::mt19937_64& rng) {
@@ -202,19 +262,25 @@ GroundResult ground_plane_method(std::span<const Vec3f> pts, const GroundConfig&
   if (r.plane.normal.z() < 0) r.plane = {-r.plane.normal, -r.plane.d};
   r.height.resize(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) r.height[i] = r.plane.signed_distance(pts[i]);
+  r.band.assign(pts.size(), float(c.d_plane));
   return r;
 }
 
 GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& c) {
   if (!(c.cell_size > 0) || !(c.max_window > 0)) throw ConfigError("ground: cell_size and max_window must be > 0");
+  if (!(c.slope_height >= 0)) throw ConfigError("ground: slope_height must be >= 0");
   Grid zmin = make_grid(pts, float(c.cell_size));
   // Points sorted by cell (counting sort): cell k holds order[begin[k] .. begin[k + 1]).
   std::vector<std::uint32_t> cell_of(pts.size()), begin(zmin.v.size() + 1, 0), order(pts.size());
+  std::vector<std::uint32_t> lowest(zmin.v.size(), 0);  // per cell: its lowest point
   for (std::uint32_t i = 0; i < pts.size(); ++i) {
     const std::size_t k = zmin.index_of(pts[i]);
     cell_of[i] = std::uint32_t(k);
     ++begin[k + 1];
-    zmin.v[k] = std::min(zmin.v[k], pts[i].z());
+    if (pts[i].z() < zmin.v[k]) {
+      zmin.v[k] = pts[i].z();
+      lowest[k] = i;
+    }
   }
   for (std::size_t k = 0; k < zmin.v.size(); ++k) begin[k + 1] += begin[k];
   {
@@ -231,21 +297,34 @@ GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& 
   std::vector<std::uint8_t> ground = pmf_ground_cells(filled, c);
   for (std::size_t k = 0; k < ground.size(); ++k) ground[k] &= occupied[k];
 
-  Grid surface = zmin;
-  tbb::parallel_for(std::size_t{0}, surface.v.size(), [&](std::size_t k) {
-    if (!ground[k]) return;
-    const int x = int(k % std::size_t(surface.nx)), y = int(k / std::size_t(surface.nx));
-    const float cx = surface.x0 + (float(x) + 0.5f) * surface.cell;
-    const float cy = surface.y0 + (float(y) + 0.5f) * surface.cell;
-    surface.v[k] = local_height(pts, members(k), zmin.v[k], float(c.initial_height), cx, cy);
-  });
-  harmonic_fill(surface, ground);
-  if (c.fill_radius > 0) quadratic_fill(surface, ground, c.fill_radius, c.slope * c.fill_radius);
+  const auto terrain_surface = [&](const std::vector<std::uint8_t>& terrain) {
+    Grid surface = zmin;
+    tbb::parallel_for(std::size_t{0}, surface.v.size(), [&](std::size_t k) {
+      if (!terrain[k]) return;
+      const int x = int(k % std::size_t(surface.nx)), y = int(k / std::size_t(surface.nx));
+      const float cx = surface.x0 + (float(x) + 0.5f) * surface.cell;
+      const float cy = surface.y0 + (float(y) + 0.5f) * surface.cell;
+      const std::optional<float> own = local_height(pts, members(k), zmin.v[k], float(c.initial_height), cx, cy);
+      if (own)
+        surface.v[k] = *own;
+      else if (members(k).size() < std::size_t(kMinFitPoints))  // sparse data: too few points at all
+        surface.v[k] = sparse_height(surface, pts, lowest, terrain, x, y);
+    });
+    harmonic_fill(surface, terrain);
+    if (c.fill_radius > 0) quadratic_fill(surface, terrain, c.fill_radius, c.slope * c.fill_radius);
+    return surface;
+  };
+  Grid surface = terrain_surface(ground);
+  for (int it = 0; it < c.refine_iterations && rejoin_terrain(surface, pts, lowest, occupied, c, ground) > 0; ++it)
+    surface = terrain_surface(ground);
 
   GroundResult r;
   r.height.resize(pts.size());
+  r.band.assign(pts.size(), float(c.d_plane));
+  const Grid slope = c.slope_height > 0 ? slope_of(surface) : Grid{};
   tbb::parallel_for(std::size_t{0}, pts.size(), [&](std::size_t i) {
     r.height[i] = pts[i].z() - surface.bilinear(pts[i].x(), pts[i].y());
+    if (c.slope_height > 0) r.band[i] += float(c.slope_height) * slope.bilinear(pts[i].x(), pts[i].y());
   });
   return r;
 }
@@ -267,7 +346,7 @@ GroundResult estimate_ground(std::span<const Vec3f> points, const GroundConfig& 
   const std::size_t stride = std::max<std::size_t>(1, points.size() / kPlanePoints);
   std::vector<std::uint32_t> ground_idx;
   for (std::uint32_t i = 0; i < points.size(); i += std::uint32_t(stride))
-    if (r.height[i] <= config.d_plane) ground_idx.push_back(i);
+    if (r.is_ground(i)) ground_idx.push_back(i);
   if (config.method == "grid") {
     if (auto p = fit_plane(points, ground_idx)) {
       r.plane = *p;

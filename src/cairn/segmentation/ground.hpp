@@ -33,6 +33,11 @@ struct GroundConfig {
                                 // chains run on through terrain noise under a stone's bulge)
   double fill_radius = 1.5;     // grid method: terrain under objects from a quadratic fit to the
                                 // terrain cells within this radius (0: harmonic fill only) [m]
+  double slope_height = 0.0;    // grid method: the ground band widens by this × the surface's
+                                // slope (rise/run) — SMRF's elevation scaler (Pingel et al. 2013):
+                                // a cell-sized surface cannot follow steep ground exactly [m]
+  int refine_iterations = 0;    // grid method: cells whose lowest point lies in the ground band of
+                                // the surface are terrain after all; refit, up to this many times
 
   template <class V>
   void visit(V& v) {
@@ -51,12 +56,19 @@ struct GroundConfig {
     v("attach_distance", attach_distance, "max. 3-D distance of an attached point from the object [m]");
     v("attach_chain", attach_chain, "attached low points may attach further ones (false: one hop from the object)");
     v("fill_radius", fill_radius, "grid method: quadratic fit radius for the ground under objects (0: harmonic only) [m]");
+    v("refine_iterations", refine_iterations,
+      "grid method: cells whose lowest point lies in the ground band become terrain and the surface is refit (rounds)");
+    v("slope_height", slope_height,
+      "grid method: the ground band is d_plane + slope_height x the surface slope (rise/run); 0: d_plane everywhere [m]");
   }
 };
 
 struct GroundResult {
   std::vector<float> height;  // per point: height above the local ground [m]
+  std::vector<float> band;    // per point: top of the ground band there, d_plane + slope_height × slope [m]
   Plane plane;                // dominant ground plane (least squares over the ground points)
+  /// Point i is ground: no higher above the local ground than the band there.
+  [[nodiscard]] bool is_ground(std::size_t i) const { return height[i] <= band[i]; }
 };
 
 /// Heights above the ground for every point. Throws ConfigError on invalid parameters and

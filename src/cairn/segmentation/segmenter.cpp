@@ -44,20 +44,21 @@ class Footprint {
   std::vector<std::uint8_t> occupied_;
 };
 
-/// Stone bottoms: points of the low band (attach_height < h <= d_plane) under the dilated xy
+/// Stone bottoms: points of the low band (attach_height < h <= the ground band) under the dilated xy
 /// footprint of the objects (attach_radius, to the resolution of a radius/2 grid) join the
 /// cluster of an object point within attach_distance (the first cluster that reaches them).
 /// Visible stone bottoms continue straight up into the stone's core points, so one hop suffices;
 /// with attach_chain, attached points attach further ones breadth-first (more complete, but the
 /// chain runs on through terrain points that noise lifts into the band).
-void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& height, const SegmentationConfig& c,
+void attach_low_band(std::span<const Vec3f> pts, const GroundResult& ground, const SegmentationConfig& c,
                      std::vector<std::vector<std::uint32_t>>& clusters) {
   if (clusters.empty()) return;
+  const std::vector<float>& height = ground.height;
   const Footprint footprint(pts, clusters, c.ground.attach_radius);
   std::vector<std::uint32_t> band;
   std::vector<Vec3f> band_pts;
   for (std::uint32_t i = 0; i < pts.size(); ++i)
-    if (height[i] > c.ground.attach_height && height[i] <= c.ground.d_plane && footprint.covers(pts[i])) {
+    if (height[i] > c.ground.attach_height && ground.is_ground(i) && footprint.covers(pts[i])) {
       band.push_back(i);
       band_pts.push_back(pts[i]);
     }
@@ -66,10 +67,9 @@ void attach_low_band(std::span<const Vec3f> pts, const std::vector<float>& heigh
   std::vector<std::int32_t> owner(band.size(), -1);
   std::deque<std::pair<Vec3f, std::int32_t>> frontier;
   const float tol = float(c.ground.attach_distance);
-  const float seed_height = float(c.ground.d_plane) + tol;  // only core points this low can reach
   for (std::size_t s = 0; s < clusters.size(); ++s)
     for (auto i : clusters[s])
-      if (height[i] <= seed_height) frontier.emplace_back(pts[i], std::int32_t(s));
+      if (height[i] <= ground.band[i] + tol) frontier.emplace_back(pts[i], std::int32_t(s));  // only these can reach
   while (!frontier.empty()) {
     const auto [p, s] = frontier.front();
     frontier.pop_front();
@@ -186,10 +186,10 @@ Clusters clusters_above_ground(std::span<const Vec3f> pts, const SegmentationCon
   timings.add("ground", sw.lap_ms());
   std::vector<std::uint32_t> above;
   for (std::uint32_t i = 0; i < pts.size(); ++i)
-    if (c.ground.height[i] > config.ground.d_plane) above.push_back(i);
+    if (!c.ground.is_ground(i)) above.push_back(i);
   c.clusters = euclidean_clusters(pts, above, config.clustering);
   timings.add("clustering", sw.lap_ms());
-  attach_low_band(pts, c.ground.height, config, c.clusters);
+  attach_low_band(pts, c.ground, config, c.clusters);
   timings.add("attach_bottoms", sw.lap_ms());
   return c;
 }
@@ -247,7 +247,7 @@ SegmentationResult segment(const PointCloud& cloud, const SegmentationConfig& co
 
   res.labels.assign(pts.size(), kLabelNone);
   for (std::uint32_t i = 0; i < pts.size(); ++i)
-    if (ground.height[i] <= config.ground.d_plane) res.labels[i] = kLabelGround;
+    if (ground.is_ground(i)) res.labels[i] = kLabelGround;
   for (const auto& s : terrain)
     for (auto i : s.indices) res.labels[i] = kLabelGround;
   std::int32_t next_id = 0;
