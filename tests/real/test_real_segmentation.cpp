@@ -1,9 +1,7 @@
 // Segmentation stages on real data nobody here made (../shared/data/real).
 #include <gtest/gtest.h>
 
-#include <bit>
 #include <cstdio>
-#include <unordered_set>
 
 #include "cairn/core/io/io.hpp"
 #include "cairn/segmentation/segmenter.hpp"
@@ -11,78 +9,7 @@
 
 using namespace cairn;
 
-namespace {
-
-/// Configuration for airborne laser scanning (1–3.5 m point spacing, buildings up to ~40 m):
-/// the same algorithm with parameters scaled to the sensor.
-GroundConfig airborne_ground() {
-  GroundConfig g;
-  g.method = "grid";
-  g.cell_size = 1.0;
-  g.max_window = 40.0;
-  g.slope = 0.6;
-  g.initial_height = 0.5;
-  g.max_height = 3.0;
-  g.d_plane = 0.5;
-  return g;
-}
-
-std::uint64_t key(const Vec3d& p) {  // exact identity of a float32 point, via its world coords
-  const auto f = [](double v) { return std::uint64_t(std::uint32_t(std::bit_cast<std::uint32_t>(float(v)))); };
-  return f(p.x()) * 0x9E3779B97F4A7C15ull ^ f(p.y()) * 0xC2B2AE3D27D4EB4Full ^ f(p.z());
-}
-
-struct F1 {
-  double precision = 0, recall = 0, f1 = 0;
-};
-
-F1 ground_f1(const std::string& sample, const GroundConfig& cfg) {
-  const PointCloud all = io::load_cloud(test::real_data("pcl-terrain-isprs/" + sample + "-utm.pcd"));
-  const PointCloud gnd = io::load_cloud(test::real_data("pcl-terrain-isprs/" + sample + "-utm-ground.pcd"));
-  std::unordered_multiset<std::uint64_t> truth;
-  for (std::size_t i = 0; i < gnd.size(); ++i) truth.insert(key(gnd.world(i)));
-  std::mt19937_64 rng(42);
-  const GroundResult r = estimate_ground(all.points, cfg, rng);
-  std::size_t tp = 0, fp = 0, fn = 0;
-  for (std::size_t i = 0; i < all.size(); ++i) {
-    const bool is_truth = truth.count(key(all.world(i))) > 0;
-    const bool is_pred = r.height[i] <= cfg.d_plane;
-    tp += is_truth && is_pred;
-    fp += !is_truth && is_pred;
-    fn += is_truth && !is_pred;
-  }
-  F1 s;
-  s.precision = double(tp) / double(std::max<std::size_t>(1, tp + fp));
-  s.recall = double(tp) / double(std::max<std::size_t>(1, tp + fn));
-  s.f1 = 2 * s.precision * s.recall / std::max(1e-12, s.precision + s.recall);
-  return s;
-}
-
-}  // namespace
-
-// Ground truth: the ISPRS reference labels (ground file = subset of the full file).
-TEST(RealData, IsprsGroundF1) {
-  CAIRN_REQUIRE_REAL_DATA("pcl-terrain-isprs/samp11-utm.pcd");
-  const std::vector<std::string> samples{"samp11", "samp12", "samp21", "samp22", "samp23", "samp24", "samp31"};
-  GroundConfig plane = airborne_ground();
-  plane.method = "plane";
-  plane.max_tilt_deg = 45;
-  int good = 0, plane_good = 0, present = 0;
-  std::printf("%-8s %9s %9s %9s | %9s (single plane)\n", "sample", "precision", "recall", "F1", "F1");
-  for (const auto& s : samples) {
-    if (!std::filesystem::exists(test::real_data("pcl-terrain-isprs/" + s + "-utm.pcd"))) continue;
-    ++present;
-    const F1 g = ground_f1(s, airborne_ground());
-    const F1 p = ground_f1(s, plane);
-    std::printf("%-8s %9.3f %9.3f %9.3f | %9.3f\n", s.c_str(), g.precision, g.recall, g.f1, p.f1);
-    good += g.f1 >= 0.95;
-    plane_good += p.f1 >= 0.95;
-    EXPECT_GE(g.f1, 0.85) << s;         // no sample fails badly
-    EXPECT_GT(g.f1, p.f1 - 0.01) << s;  // never worse than the single plane
-  }
-  EXPECT_GE(good * 2, present + 1) << "F1 >= 0.95 on most samples";
-  EXPECT_GT(good, plane_good);
-}
+// Real airborne terrain (ISPRS): tests/peers/test_pcl_ground.cpp, beside PCL's filter.
 
 // Real stereo capture of a layer of stones on a flat work surface (camera above, z towards it).
 // The stones of the layer touch each other along their seams, so — as the paper notes of
