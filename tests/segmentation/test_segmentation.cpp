@@ -195,12 +195,13 @@ TEST(Segmentation, GroundBandWidensWithTheSurfaceSlope) {
   c.slope_height = 0.5;
   const GroundResult wide = estimate_ground(slope_pts, c, rng);
   const GroundResult flat = estimate_ground(flat_pts, c, rng);
-  for (std::size_t i = 0; i < wide.band.size(); ++i) {
-    EXPECT_NEAR(flat.band[i], 0.1, 1e-6) << i;
-    EXPECT_FLOAT_EQ(narrow.band[i], 0.1f) << i;
+  EXPECT_TRUE(narrow.widening.empty());  // slope_height 0: d_plane everywhere, as before
+  for (std::size_t i = 0; i < slope_pts.size(); ++i) {
+    EXPECT_NEAR(flat.band(i), 0.1, 1e-6) << i;
+    EXPECT_EQ(narrow.band(i), 0.1) << i;
     const Vec3f& p = slope_pts[i];
     if (std::min({p.x(), p.y(), 19.5f - p.x(), 19.5f - p.y()}) < 3.0f) continue;  // border
-    EXPECT_NEAR(wide.band[i], 0.1 + 0.5 * 1.0, 0.02) << i;
+    EXPECT_NEAR(wide.band(i), 0.1 + 0.5 * 1.0, 0.02) << i;
     EXPECT_NEAR(narrow.height[i], p.z() - p.x(), 0.02) << i;  // 0, or 0.3 for the lifted points
     EXPECT_TRUE(wide.is_ground(i)) << i;
   }
@@ -242,4 +243,23 @@ TEST(Segmentation, RefinementTakesBackTheHillTheWindowsCutOff) {
   EXPECT_LT(once, 0.5);
   EXPECT_GT(share_on_hill(refined), 0.99);
   for (std::size_t i = 0; i < pts.size(); ++i) EXPECT_TRUE(refined.is_ground(i)) << pts[i].transpose();
+}
+
+// A sparse cell whose neighbours' lowest points lie on a line (a one-point-wide strip, e.g. a
+// single scan line) has no plane across it: it keeps its own lowest point instead of a plane
+// extrapolated across the strip, whose tilt the 1 cm noise would set.
+TEST(Segmentation, SparseCellsOnALineKeepTheirLowestPoint) {
+  std::mt19937 rng(2);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  std::vector<Vec3f> pts;
+  for (int i = 0; i < 41; ++i) pts.emplace_back(0.5f * float(i), 0.3f, noise(rng));
+  pts.emplace_back(0.0f, 0.9f, 0.0f);  // the grid one cell deep: centres 0.2 m off the line
+  GroundConfig c;
+  c.cell_size = 1.0;
+  std::mt19937_64 gen(1);
+  const GroundResult r = estimate_ground(pts, c, gen);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_LT(std::abs(r.height[i]), 0.05f) << i;
+    EXPECT_TRUE(r.is_ground(i)) << i;
+  }
 }

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -195,14 +196,18 @@ std::optional<float> local_height(std::span<const Vec3f> pts, std::span<const st
 }
 
 /// Height at a cell's centre from the lowest points of the terrain cells around it (3×3, itself
-/// included) when the cell cannot fit its own plane (sparse data): a plane through those points
-/// where they span one, else the cell's own lowest point. Taking the lowest point's height for the
-/// centre would put the surface half a cell × slope too low on steep ground.
+/// included) when the cell has too few points for its own fit (sparse data): a plane through those
+/// points where they spread over the neighbourhood in both directions, clamped to their height
+/// range widened by itself on both sides; else the cell's own lowest point. Taking the lowest point's height for the centre would
+/// put the surface up to half a cell × slope too low on steep ground.
 float sparse_height(const GridFrame& g, std::span<const Vec3f> pts, const std::vector<std::uint32_t>& lowest,
                     const std::vector<std::uint8_t>& terrain, int x, int y) {
+  constexpr double kMinSpread = 0.25;  // [cells] smallest standard deviation of the points across any xy direction
   const float cx = g.x0 + (float(x) + 0.5f) * g.cell, cy = g.y0 + (float(y) + 0.5f) * g.cell;
+  const float own = pts[lowest[g.index(x, y)]].z();
   Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
   Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  float lo = own, hi = own;
   for (int v = std::max(0, y - 1); v <= std::min(g.ny - 1, y + 1); ++v)
     for (int u = std::max(0, x - 1); u <= std::min(g.nx - 1, x + 1); ++u) {
       const std::size_t k = g.index(u, v);
@@ -211,10 +216,17 @@ float sparse_height(const GridFrame& g, std::span<const Vec3f> pts, const std::v
       const Eigen::Vector3d r(1.0, p.x() - cx, p.y() - cy);
       ata += r * r.transpose();
       atb += r * double(p.z());
+      lo = std::min(lo, p.z());
+      hi = std::max(hi, p.z());
     }
-  const double scale = double(g.cell) * double(g.cell);  // determinant of well-spread points ~ n³ cell⁴
-  if (ata.determinant() < 1e-3 * scale * scale) return pts[lowest[g.index(x, y)]].z();
-  return float(ata.ldlt().solve(atb)[0]);
+  const double n = ata(0, 0);
+  if (n < 3) return own;
+  const Eigen::Vector2d mean = ata.block<2, 1>(1, 0) / n;
+  const Eigen::Matrix2d cov = ata.block<2, 2>(1, 1) / n - mean * mean.transpose();
+  const double spread = kMinSpread * double(g.cell);
+  if (Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvalues()[0] < spread * spread) return own;
+  const float margin = hi - lo;  // the centre may lie outside the points' hull (at a border of the terrain)
+  return std::clamp(float(ata.ldlt().solve(atb)[0]), lo - margin, hi + margin);
 }
 
 /// Slope (rise/run) of the surface per cell: the gradient's length from central differences
@@ -238,13 +250,13 @@ Grid slope_of(const Grid& surface) {
 std::size_t rejoin_terrain(const Grid& surface, std::span<const Vec3f> pts, const std::vector<std::uint32_t>& lowest,
                            const std::vector<std::uint8_t>& occupied, const GroundConfig& c,
                            std::vector<std::uint8_t>& terrain) {
-  const Grid slope = slope_of(surface);
+  const Grid slope = c.slope_height > 0 ? slope_of(surface) : Grid{};
   std::size_t added = 0;
   for (std::size_t k = 0; k < terrain.size(); ++k) {
     if (terrain[k] || !occupied[k]) continue;
     const Vec3f& p = pts[lowest[k]];
-    const float band = float(c.d_plane + c.slope_height * slope.bilinear(p.x(), p.y()));
-    if (p.z() - surface.bilinear(p.x(), p.y()) <= band) terrain[k] = 1, ++added;
+    const double band = c.d_plane + (c.slope_height > 0 ? double(float(c.slope_height) * slope.bilinear(p.x(), p.y())) : 0.0);
+    if (p.z() - surface.bilinear(p.x(), p.y()) <= band) terrain[k] = 1, ++added;  // as GroundResult::is_ground
   }
   return added;
 }
@@ -262,13 +274,14 @@ GroundResult ground_plane_method(std::span<const Vec3f> pts, const GroundConfig&
   if (r.plane.normal.z() < 0) r.plane = {-r.plane.normal, -r.plane.d};
   r.height.resize(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) r.height[i] = r.plane.signed_distance(pts[i]);
-  r.band.assign(pts.size(), float(c.d_plane));
+  r.d_plane = c.d_plane;
   return r;
 }
 
 GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& c) {
   if (!(c.cell_size > 0) || !(c.max_window > 0)) throw ConfigError("ground: cell_size and max_window must be > 0");
   if (!(c.slope_height >= 0)) throw ConfigError("ground: slope_height must be >= 0");
+  if (c.refine_iterations < 0) throw ConfigError("ground: refine_iterations must be >= 0");
   Grid zmin = make_grid(pts, float(c.cell_size));
   // Points sorted by cell (counting sort): cell k holds order[begin[k] .. begin[k + 1]).
   std::vector<std::uint32_t> cell_of(pts.size()), begin(zmin.v.size() + 1, 0), order(pts.size());
@@ -320,11 +333,12 @@ GroundResult ground_grid_method(std::span<const Vec3f> pts, const GroundConfig& 
 
   GroundResult r;
   r.height.resize(pts.size());
-  r.band.assign(pts.size(), float(c.d_plane));
+  r.d_plane = c.d_plane;
   const Grid slope = c.slope_height > 0 ? slope_of(surface) : Grid{};
+  if (c.slope_height > 0) r.widening.resize(pts.size());
   tbb::parallel_for(std::size_t{0}, pts.size(), [&](std::size_t i) {
     r.height[i] = pts[i].z() - surface.bilinear(pts[i].x(), pts[i].y());
-    if (c.slope_height > 0) r.band[i] += float(c.slope_height) * slope.bilinear(pts[i].x(), pts[i].y());
+    if (c.slope_height > 0) r.widening[i] = float(c.slope_height) * slope.bilinear(pts[i].x(), pts[i].y());
   });
   return r;
 }

@@ -3,8 +3,11 @@
 //  - "plane": the paper's single RANSAC plane with distance margin d_plane;
 //  - "grid":  a local ground surface for sloped, undulating terrain — a progressive morphological
 //    filter (Zhang et al. 2003) on a grid of lowest points separates terrain cells from object
-//    cells, terrain cells get a local least-squares height, object and empty cells are filled by
-//    harmonic interpolation, and every point gets its height above that surface.
+//    cells, terrain cells get a local least-squares height (sparse cells: the plane through their
+//    neighbours' lowest points), object and empty cells are filled by interpolation, optionally
+//    object cells lying in the ground band rejoin the terrain (refine_iterations), and every point
+//    gets its height above that surface. A point is ground within the band: d_plane, widened on
+//    slopes by slope_height × slope (SMRF, Pingel et al. 2013; off by default).
 #include <cstdint>
 #include <random>
 #include <span>
@@ -25,7 +28,7 @@ struct GroundConfig {
   double slope = 0.3;           // grid method: terrain slope tolerated by the filter (rise/run)
   double initial_height = 0.2;  // grid method: height threshold of the first window [m]
   double max_height = 3.0;      // grid method: cap of the growing height threshold [m]
-  double attach_height = 0.02;  // points higher than this (but within d_plane) next to an
+  double attach_height = 0.02;  // points higher than this (but in the ground band) next to an
                                 // object join it: keeps the bottoms of stones [m]
   double attach_radius = 0.15;  // ... if within this horizontal distance of the object [m]
   double attach_distance = 0.12;  // [m] ... and within this 3-D distance of an object point
@@ -64,11 +67,15 @@ struct GroundConfig {
 };
 
 struct GroundResult {
-  std::vector<float> height;  // per point: height above the local ground [m]
-  std::vector<float> band;    // per point: top of the ground band there, d_plane + slope_height × slope [m]
-  Plane plane;                // dominant ground plane (least squares over the ground points)
+  std::vector<float> height;     // per point: height above the local ground [m]
+  double d_plane = 0.10;         // the ground band on flat ground [m]
+  std::vector<float> widening;   // per point: the band's widening on slopes, slope_height × slope
+                                 // [m]; empty when slope_height is 0
+  Plane plane;                   // dominant ground plane (least squares over the ground points)
+  /// Top of the ground band at point i [m].
+  [[nodiscard]] double band(std::size_t i) const { return widening.empty() ? d_plane : d_plane + widening[i]; }
   /// Point i is ground: no higher above the local ground than the band there.
-  [[nodiscard]] bool is_ground(std::size_t i) const { return height[i] <= band[i]; }
+  [[nodiscard]] bool is_ground(std::size_t i) const { return height[i] <= band(i); }
 };
 
 /// Heights above the ground for every point. Throws ConfigError on invalid parameters and

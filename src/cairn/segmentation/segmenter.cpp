@@ -69,7 +69,7 @@ void attach_low_band(std::span<const Vec3f> pts, const GroundResult& ground, con
   const float tol = float(c.ground.attach_distance);
   for (std::size_t s = 0; s < clusters.size(); ++s)
     for (auto i : clusters[s])
-      if (height[i] <= ground.band[i] + tol) frontier.emplace_back(pts[i], std::int32_t(s));  // only these can reach
+      if (height[i] <= float(ground.band(i)) + tol) frontier.emplace_back(pts[i], std::int32_t(s));  // only these can reach
   while (!frontier.empty()) {
     const auto [p, s] = frontier.front();
     frontier.pop_front();
