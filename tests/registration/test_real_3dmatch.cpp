@@ -32,10 +32,17 @@ GlobalRegistrationConfig indoor_config() {
 
 }  // namespace
 
-TEST(Real3DMatch, FragmentsRegisterWithoutSegments) {
+class Real3DMatchPair : public ::testing::TestWithParam<bool> {};
+
+// Both estimators of the descriptor candidates: the paper's consistency grouping and the maximum
+// clique (TEASER++'s inlier selection).
+INSTANTIATE_TEST_SUITE_P(Estimators, Real3DMatchPair, ::testing::Values(false, true));  // max clique off, on
+
+TEST_P(Real3DMatchPair, FragmentsRegisterWithoutSegments) {
   CAIRN_REQUIRE_REAL_DATA("geotransformer-3dmatch-demo/gt.npy");
   const auto p = test::load_3dmatch_pair();
-  const GlobalRegistrationConfig cfg = indoor_config();
+  GlobalRegistrationConfig cfg = indoor_config();
+  cfg.max_clique.enabled = GetParam();
   const GlobalRegistrationResult r = register_global(p.source, p.target, {}, cfg);
   ASSERT_TRUE(r.success) << r.reason;
   const auto e = test::error_at_centroid(r.T_target_source, p.T_gt, p.source);
@@ -52,6 +59,7 @@ TEST(Real3DMatch, FragmentsRegisterWithoutSegments) {
   T_opt = register_icp(p.source.points, target, T_opt, cfg.icp).T_target_source;
   const auto e_opt = test::error_at_centroid(r.T_target_source, T_opt, p.source);
   const auto e_gt_opt = test::error_at_centroid(T_opt, p.T_gt, p.source);
+  std::printf("%s: ", GetParam() ? "max clique" : "grouping");
   std::printf("3DMatch pair: %zu/%zu keypoints, %zu matches, %zu candidates; overlap %.3f rmse %.4f; error vs gt "
               "%.3f deg, %.4f m at the centroid; vs ICP-from-gt %.3f deg, %.4f m (which is %.3f deg, %.4f m from "
               "gt); %.0f ms\n",
@@ -74,13 +82,15 @@ TEST(Real3DMatch, FragmentsRegisterWithoutSegments) {
   }
 }
 
-TEST(Real3DMatch, MirroredSceneIsRefused) {
+TEST_P(Real3DMatchPair, MirroredSceneIsRefused) {
   // The target mirrored (x -> -x) is a room that does not exist: no rigid motion explains the
   // source, and the descriptor path must say so rather than return its best guess.
   CAIRN_REQUIRE_REAL_DATA("geotransformer-3dmatch-demo/gt.npy");
   auto p = test::load_3dmatch_pair();
   for (Vec3f& q : p.target.points) q.x() = -q.x();
-  const GlobalRegistrationResult r = register_global(p.source, p.target, {}, indoor_config());
+  GlobalRegistrationConfig cfg = indoor_config();
+  cfg.max_clique.enabled = GetParam();
+  const GlobalRegistrationResult r = register_global(p.source, p.target, {}, cfg);
   EXPECT_FALSE(r.success);
   double best = 0.0;
   std::size_t refined = 0;
@@ -89,6 +99,7 @@ TEST(Real3DMatch, MirroredSceneIsRefused) {
     refined += c.refined;
   }
   ASSERT_GT(refined, 0u) << "no candidate was refined: the overlap test was never reached";
+  std::printf("%s: ", GetParam() ? "max clique" : "grouping");
   std::printf("mirrored 3DMatch target: %zu candidates, best overlap %.3f (%s)\n", r.candidates, best, r.reason.c_str());
   EXPECT_LT(best, indoor_config().acceptance.min_overlap);
 }

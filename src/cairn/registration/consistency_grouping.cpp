@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <string>
 
 #include "cairn/core/error.hpp"
@@ -150,6 +151,34 @@ std::vector<std::vector<Correspondence>> consistency_clusters(std::span<const Ve
   return clusters;
 }
 
+std::optional<TransformCandidate> fit_candidate(std::span<const Vec3f> source_keypoints,
+                                                std::span<const Vec3f> target_keypoints,
+                                                std::vector<Correspondence> members, double tolerance, int refits) {
+  Fit fit = rigid_fit(source_keypoints, target_keypoints, members);
+  if (!fit.ok) return std::nullopt;
+  TransformCandidate cand;
+  cand.votes = members.size();
+  cand.inliers = std::move(members);
+  // Sec. 4.4 step 4: the transform from the consistent members; pairs that the fit places farther
+  // than the tolerance from their partner are dropped and the fit repeated.
+  const double t2 = tolerance * tolerance;
+  for (int round = 0; round < refits; ++round) {
+    std::vector<Correspondence> in;
+    for (const auto& m : cand.inliers)
+      if ((target_keypoints[m.target].cast<double>() - fit.T * source_keypoints[m.source].cast<double>()).squaredNorm() <
+          t2)
+        in.push_back(m);
+    if (in.size() < 3) break;
+    const Fit refit = rigid_fit(source_keypoints, target_keypoints, in);
+    if (!refit.ok) break;
+    fit = refit;
+    cand.inliers = std::move(in);
+  }
+  cand.T_target_source = fit.T;
+  cand.rms = rms_of(source_keypoints, target_keypoints, cand.inliers, fit.T);
+  return cand;
+}
+
 std::vector<TransformCandidate> geometric_consistency_grouping(std::span<const Vec3f> source_keypoints,
                                                                std::span<const Vec3f> target_keypoints,
                                                                std::span<const Correspondence> matches,
@@ -163,32 +192,9 @@ std::vector<TransformCandidate> geometric_consistency_grouping(std::span<const V
   std::vector<TransformCandidate> out;
   for (std::size_t c : order) {
     if (out.size() >= std::size_t(cfg.max_candidates)) break;
-    std::vector<Correspondence>& cluster = clusters[c];
-    Fit fit = rigid_fit(source_keypoints, target_keypoints, cluster);
-    if (!fit.ok) continue;
-    TransformCandidate cand;
-    cand.votes = cluster.size();
-    cand.inliers = cluster;
-    if (cfg.refine) {
-      // Sec. 4.4 step 4: the cluster's transform from its consistent members; pairs that the fit
-      // places farther than consensus_size from their partner are dropped and the fit repeated.
-      const double t2 = cfg.consensus_size * cfg.consensus_size;
-      for (int round = 0; round < 2; ++round) {
-        std::vector<Correspondence> in;
-        for (const auto& m : cluster)
-          if ((target_keypoints[m.target].cast<double>() - fit.T * source_keypoints[m.source].cast<double>())
-                  .squaredNorm() < t2)
-            in.push_back(m);
-        if (in.size() < 3) break;
-        const Fit refit = rigid_fit(source_keypoints, target_keypoints, in);
-        if (!refit.ok) break;
-        fit = refit;
-        cand.inliers = std::move(in);
-      }
-    }
-    cand.T_target_source = fit.T;
-    cand.rms = rms_of(source_keypoints, target_keypoints, cand.inliers, fit.T);
-    out.push_back(std::move(cand));
+    if (auto cand = fit_candidate(source_keypoints, target_keypoints, std::move(clusters[c]), cfg.consensus_size,
+                                  cfg.refine ? 2 : 0))
+      out.push_back(std::move(*cand));
   }
   return out;
 }

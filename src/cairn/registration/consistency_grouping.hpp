@@ -25,6 +25,7 @@
 //   collinear (no unique rotation) yields no candidate.
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -66,6 +67,15 @@ struct TransformCandidate {
                                                                            std::span<const Vec3f> target_keypoints,
                                                                            std::span<const Correspondence> matches,
                                                                            const GroupingConfig& cfg);
+
+/// The rigid transform of a set of correspondences (Umeyama over all members), then `refits`
+/// times refitted on the members the current fit places within `tolerance` of their partner
+/// (stops early when fewer than 3 remain). Nothing when the members are collinear or fewer than 3.
+/// votes = the members given; inliers = the members of the last fit.
+[[nodiscard]] std::optional<TransformCandidate> fit_candidate(std::span<const Vec3f> source_keypoints,
+                                                              std::span<const Vec3f> target_keypoints,
+                                                              std::vector<Correspondence> members, double tolerance,
+                                                              int refits);
 
 /// The clusters alone (PCL's clustering, in discovery order, all of them), as lists of
 /// correspondences in sorted-by-distance order. Exposed for the PCL cross-check and diagnostics.

@@ -1,6 +1,7 @@
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/registration/global_steps.hpp"
 
+#include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -68,7 +69,16 @@ std::vector<TransformCandidate> descriptor_candidates(SegmentSet& src, SegmentSe
   std::vector<Vec3f> src_kp, tgt_kp;
   for (std::uint32_t i : src.keypoints) src_kp.push_back(src.points[i]);
   for (std::uint32_t i : tgt.keypoints) tgt_kp.push_back(tgt.points[i]);
-  std::vector<TransformCandidate> candidates = geometric_consistency_grouping(src_kp, tgt_kp, matches, cfg.grouping);
+  std::vector<TransformCandidate> candidates;
+  if (cfg.max_clique.enabled) {
+    CliqueEstimate e = max_clique_registration(src_kp, tgt_kp, matches, cfg.max_clique);
+    spdlog::debug("registration: max clique of {} / {} correspondences ({} edges, {}, {} nodes)",
+                  e.clique.vertices.size(), e.correspondences, e.edges, e.clique.exact ? "exact" : "budget reached",
+                  e.clique.nodes);
+    candidates = std::move(e.candidates);
+  } else {
+    candidates = geometric_consistency_grouping(src_kp, tgt_kp, matches, cfg.grouping);
+  }
   if (cfg.gravity_aligned)
     std::erase_if(candidates, [&](const TransformCandidate& c) { return tilt(c.T_target_source) > cfg.max_tilt_deg * kDeg; });
   r.candidates = candidates.size();  // descriptor candidates (the paper's b)
@@ -372,6 +382,7 @@ void GlobalRegistrationConfig::validate() const {
   if (!(source_voxel.res_voxel > 0.0)) throw ConfigError("registration.source_voxel.res_voxel must be positive");
   if (!(d_match > 0.0)) throw ConfigError("registration.d_match must be a positive number of metres");
   if (max_refinements < 1) throw ConfigError("registration.max_refinements must be at least 1");
+  if (max_clique.enabled) max_clique.validate();
   if (!(coarse_correspondence_distance > 0.0))
     throw ConfigError("registration.coarse_correspondence_distance must be positive");
   if (!(coarse_source_voxel >= 0.0))

@@ -38,6 +38,7 @@
 #include "cairn/features/matching.hpp"
 #include "cairn/features/shot.hpp"
 #include "cairn/registration/consistency_grouping.hpp"
+#include "cairn/registration/max_clique.hpp"
 #include "cairn/registration/icp.hpp"
 #include "cairn/registration/scale_check.hpp"
 #include "cairn/segmentation/segmenter.hpp"
@@ -104,6 +105,10 @@ struct GlobalRegistrationConfig {
   // consensus, clusters of more than 3 votes, and the 30 most-voted groups (Table 3's b = 10
   // lost the right group among wrong ones on the simulator; centroid verification is cheap).
   GroupingConfig grouping{.consensus_size = 0.1, .min_votes = 3, .max_candidates = 30};
+  /// Candidates from the descriptor correspondences: the paper's geometric consistency grouping
+  /// (Sec. 4.4 step 4: the b most-voted clusters), or with max_clique.enabled (beyond the paper,
+  /// TEASER++'s inlier selection) the largest pairwise-consistent set, one candidate.
+  MaxCliqueConfig max_clique;
   double d_match = 1.0;          // Table 3: max. distance between matched centroids [m]
   int max_refinements = 5;       // candidates refined until one is accepted
   /// Refine all max_refinements candidates even after one is accepted (the first accepted one is
@@ -155,6 +160,7 @@ struct GlobalRegistrationConfig {
     v("shot", shot, "SHOT descriptors (R_shot, Table 3)");
     v("matching", matching, "descriptor matching");
     v("grouping", grouping, "geometric-consistency grouping (b, Table 3)");
+    v("max_clique", max_clique, "maximum-clique inlier selection instead of the grouping (when enabled)");
     v("d_match", d_match, "max. distance between matched segment centroids [m] (Table 3)");
     v("max_refinements", max_refinements, "candidates refined by ICP (in verification order) until one is accepted");
     v("refine_all", refine_all, "refine all max_refinements candidates (acceptance-test study); the first accepted wins");
