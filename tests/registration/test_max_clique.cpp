@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <numeric>
 #include <random>
 
 #include "cairn/core/error.hpp"
@@ -37,6 +38,37 @@ std::size_t clique_number(const BitGraph& g) {
   return best;
 }
 
+/// The clique number by plain Bron–Kerbosch with pivoting (sets as sorted vectors): a reference
+/// independent of the bit rows and the colouring bound, for graphs spanning several 64-bit words.
+void bron_kerbosch(const BitGraph& g, std::vector<std::uint32_t>& r, std::vector<std::uint32_t> p,
+                   std::vector<std::uint32_t> x, std::size_t& best) {
+  if (p.empty() && x.empty()) best = std::max(best, r.size());
+  if (r.size() + p.size() <= best) return;
+  const auto neighbours = [&](std::uint32_t v, const std::vector<std::uint32_t>& s) {
+    std::vector<std::uint32_t> out;
+    for (const std::uint32_t w : s)
+      if (g.adjacent(v, w)) out.push_back(w);
+    return out;
+  };
+  const std::uint32_t pivot = !p.empty() ? p.front() : x.front();
+  for (const std::uint32_t v : std::vector<std::uint32_t>(p)) {
+    if (g.adjacent(pivot, v)) continue;
+    r.push_back(v);
+    bron_kerbosch(g, r, neighbours(v, p), neighbours(v, x), best);
+    r.pop_back();
+    p.erase(std::find(p.begin(), p.end(), v));
+    x.push_back(v);
+  }
+}
+
+std::size_t clique_number_bk(const BitGraph& g) {
+  std::vector<std::uint32_t> r, p(g.size());
+  std::iota(p.begin(), p.end(), 0u);
+  std::size_t best = 0;
+  bron_kerbosch(g, r, p, {}, best);
+  return best;
+}
+
 BitGraph random_graph(std::size_t n, double p, std::mt19937& rng) {
   BitGraph g(n);
   std::bernoulli_distribution edge(p);
@@ -61,6 +93,18 @@ TEST(MaxClique, EqualsEnumerationOnSmallRandomGraphs) {
   }
 }
 
+TEST(MaxClique, EqualsBronKerboschOnGraphsOfSeveralWords) {
+  std::mt19937 rng(9);
+  for (const std::size_t n : {65u, 130u, 200u})
+    for (const double p : {0.1, 0.3, 0.5}) {
+      const BitGraph g = random_graph(n, p, rng);
+      const Clique c = maximum_clique(g, 100'000'000);
+      EXPECT_TRUE(c.exact);
+      EXPECT_TRUE(is_clique(g, c.vertices)) << "n " << n << " p " << p;
+      EXPECT_EQ(c.vertices.size(), clique_number_bk(g)) << "n " << n << " p " << p;
+    }
+}
+
 TEST(MaxClique, FindsAPlantedCliqueAcrossWordBoundaries) {
   std::mt19937 rng(3);
   BitGraph g = random_graph(300, 0.1, rng);
@@ -83,6 +127,9 @@ TEST(MaxClique, ABudgetTooSmallIsNotCertified) {
   EXPECT_LE(cut.vertices.size(), full.vertices.size());
   EXPECT_GE(cut.vertices.size(), 1u);
   EXPECT_TRUE(maximum_clique(BitGraph(0), 10).vertices.empty());
+  // Certified exactly when the search fits the budget.
+  EXPECT_TRUE(maximum_clique(g, full.nodes).exact);
+  EXPECT_FALSE(maximum_clique(g, full.nodes - 1).exact);
 }
 
 // 60 true correspondences of a rigid motion (1 cm noise) among 240 random ones: the clique is the
@@ -117,12 +164,20 @@ TEST(MaxClique, RegistersCorrespondencesThatAreMostlyOutliers) {
   const Eigen::Isometry3d D = e.candidates[0].T_target_source.inverse() * T;
   EXPECT_LT(Eigen::AngleAxisd(D.linear()).angle(), 0.5 * kDeg);
   EXPECT_LT(D.translation().norm(), 0.01);
-  // Only the 20 best-matching pairs in the graph: with too few inliers among them, no candidate.
+  // Only the 20 best-matching pairs (descriptor distance) enter the graph: the 60 right ones come
+  // first in the input but match worse than every outlier, so none of them is among the 20.
   cfg.max_correspondences = 20;
   cfg.min_inliers = 6;
-  std::sort(matches.begin(), matches.end(), [](auto& a, auto& b) { return a.source > b.source; });
-  for (auto& m : matches) m.squared_distance = m.source < 60 ? 1.0f : 0.0f;  // outliers match best
-  EXPECT_TRUE(max_clique_registration(src, tgt, matches, cfg).candidates.empty());
+  for (auto& m : matches) m.squared_distance = m.source < 60 ? 1.0f : 0.5f;
+  const CliqueEstimate capped = max_clique_registration(src, tgt, matches, cfg);
+  EXPECT_TRUE(capped.candidates.empty());
+  ASSERT_EQ(capped.pairs.size(), 20u);
+  for (const Correspondence& c : capped.pairs) EXPECT_GE(c.source, 60u);
+  cfg.max_correspondences = 80;  // the 60 right ones now match best
+  for (auto& m : matches) m.squared_distance = m.source < 60 ? 0.5f : 1.0f;
+  const CliqueEstimate best = max_clique_registration(src, tgt, matches, cfg);
+  ASSERT_EQ(best.candidates.size(), 1u);
+  EXPECT_GE(best.candidates[0].inliers.size(), 58u);
 }
 
 TEST(MaxClique, BadInputIsAnError) {

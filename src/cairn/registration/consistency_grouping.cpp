@@ -162,9 +162,10 @@ std::optional<TransformCandidate> fit_candidate(std::span<const Vec3f> source_ke
   // Sec. 4.4 step 4: the transform from the consistent members; pairs that the fit places farther
   // than the tolerance from their partner are dropped and the fit repeated.
   const double t2 = tolerance * tolerance;
+  const std::vector<Correspondence> all = cand.inliers;  // every round filters all the members
   for (int round = 0; round < refits; ++round) {
     std::vector<Correspondence> in;
-    for (const auto& m : cand.inliers)
+    for (const auto& m : all)
       if ((target_keypoints[m.target].cast<double>() - fit.T * source_keypoints[m.source].cast<double>()).squaredNorm() <
           t2)
         in.push_back(m);

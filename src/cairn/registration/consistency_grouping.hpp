@@ -69,7 +69,7 @@ struct TransformCandidate {
                                                                            const GroupingConfig& cfg);
 
 /// The rigid transform of a set of correspondences (Umeyama over all members), then `refits`
-/// times refitted on the members the current fit places within `tolerance` of their partner
+/// times refitted on those of all the members the current fit places within `tolerance` of their partner
 /// (stops early when fewer than 3 remain). Nothing when the members are collinear or fewer than 3.
 /// votes = the members given; inliers = the members of the last fit.
 [[nodiscard]] std::optional<TransformCandidate> fit_candidate(std::span<const Vec3f> source_keypoints,

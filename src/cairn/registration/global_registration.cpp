@@ -73,7 +73,7 @@ std::vector<TransformCandidate> descriptor_candidates(SegmentSet& src, SegmentSe
   if (cfg.max_clique.enabled) {
     CliqueEstimate e = max_clique_registration(src_kp, tgt_kp, matches, cfg.max_clique);
     spdlog::debug("registration: max clique of {} / {} correspondences ({} edges, {}, {} nodes)",
-                  e.clique.vertices.size(), e.correspondences, e.edges, e.clique.exact ? "exact" : "budget reached",
+                  e.clique.vertices.size(), e.pairs.size(), e.edges, e.clique.exact ? "exact" : "budget reached",
                   e.clique.nodes);
     candidates = std::move(e.candidates);
   } else {

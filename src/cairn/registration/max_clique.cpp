@@ -13,7 +13,8 @@ namespace cairn {
 
 void MaxCliqueConfig::validate() const {
   if (!(noise_bound > 0.0)) throw ConfigError("max_clique.noise_bound must be positive");
-  if (max_correspondences < 3) throw ConfigError("max_clique.max_correspondences must be at least 3");
+  if (max_correspondences < 3 || max_correspondences > kMaxCorrespondences)
+    throw ConfigError("max_clique.max_correspondences must be in [3, " + std::to_string(kMaxCorrespondences) + "]");
   if (min_inliers < 3) throw ConfigError("max_clique.min_inliers must be at least 3 (a rigid transform needs 3 pairs)");
   if (node_budget < 1) throw ConfigError("max_clique.node_budget must be at least 1");
 }
@@ -21,6 +22,7 @@ void MaxCliqueConfig::validate() const {
 BitGraph::BitGraph(std::size_t n) : n_(n), words_((n + 63) / 64), bits_(n * words_, 0) {}
 
 void BitGraph::add_edge(std::size_t a, std::size_t b) {
+  if (a == b) return;
   bits_[a * words_ + (b >> 6)] |= std::uint64_t{1} << (b & 63);
   bits_[b * words_ + (a >> 6)] |= std::uint64_t{1} << (a & 63);
 }
@@ -145,12 +147,12 @@ CliqueEstimate max_clique_registration(std::span<const Vec3f> source_keypoints, 
                        " is out of range of the keypoints (" + std::to_string(source_keypoints.size()) + " source, " +
                        std::to_string(target_keypoints.size()) + " target)");
   // The best-matching pairs, ties in input order.
-  std::vector<Correspondence> pairs(matches.begin(), matches.end());
+  CliqueEstimate e;
+  std::vector<Correspondence>& pairs = e.pairs;
+  pairs.assign(matches.begin(), matches.end());
   std::stable_sort(pairs.begin(), pairs.end(),
                    [](const Correspondence& a, const Correspondence& b) { return a.squared_distance < b.squared_distance; });
   if (pairs.size() > std::size_t(cfg.max_correspondences)) pairs.resize(std::size_t(cfg.max_correspondences));
-  CliqueEstimate e;
-  e.correspondences = pairs.size();
   const std::size_t n = pairs.size();
   BitGraph g(n);
   const double agree = 2.0 * cfg.noise_bound;

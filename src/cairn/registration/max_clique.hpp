@@ -9,8 +9,11 @@
 // transform is fitted to the clique (Umeyama) and refitted on the members within noise_bound.
 //
 // Unlike geometric consistency grouping (consistency_grouping.hpp: greedy clusters in descriptor
-// order), the answer does not depend on the order of the matches, and one consistent set is
-// returned, not b candidates.
+// order), the clique's size does not depend on the order of the matches (which of several
+// equally large cliques is returned, and which pairs a tie in descriptor distance lets into the
+// capped graph, do), and one consistent set is returned, not b candidates. With
+// registration.max_clique.enabled it replaces the grouping on both paths (with and without
+// segments); on the segmented path that is one candidate instead of b.
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -20,12 +23,16 @@
 
 namespace cairn {
 
+inline constexpr int kMaxCorrespondences = 20000;
+
 struct MaxCliqueConfig {
   bool enabled = false;              // registration: candidates from the clique instead of the grouping
   double noise_bound = 0.05;         // [m] keypoint position noise; pairs agree within twice this
   int max_correspondences = 2000;    // the best-matching pairs (descriptor distance) taken into the graph
+                                     // (at most kMaxCorrespondences: memory n²/8 bytes)
   int min_inliers = 4;               // a smaller clique gives no candidate
   std::int64_t node_budget = 2'000'000;  // branch-and-bound nodes before the best clique so far is returned
+                                         // (a bound on work, not time: each node costs O(n/64))
 
   template <class V>
   void visit(V&& v) {
@@ -44,7 +51,7 @@ struct MaxCliqueConfig {
 class BitGraph {
  public:
   explicit BitGraph(std::size_t n);
-  void add_edge(std::size_t a, std::size_t b);
+  void add_edge(std::size_t a, std::size_t b);  // a == b is ignored (no loops)
   [[nodiscard]] bool adjacent(std::size_t a, std::size_t b) const { return (row(a)[b >> 6] >> (b & 63)) & 1u; }
   [[nodiscard]] std::size_t size() const { return n_; }
   [[nodiscard]] std::size_t words() const { return words_; }
@@ -67,9 +74,9 @@ struct Clique {
 
 struct CliqueEstimate {
   std::vector<TransformCandidate> candidates;  // at most one: the clique's transform
-  std::size_t correspondences = 0;             // in the graph
+  std::vector<Correspondence> pairs;           // the graph's vertices: the best-matching correspondences
   std::size_t edges = 0;
-  Clique clique;                               // indices into the graph's correspondences
+  Clique clique;                               // indices into `pairs`
 };
 
 /// The rigid transform of the largest set of pairwise consistent correspondences.
