@@ -7,6 +7,7 @@
 #include <bit>
 #include <numeric>
 #include <random>
+#include <string>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/units.hpp"
@@ -78,6 +79,14 @@ BitGraph random_graph(std::size_t n, double p, std::mt19937& rng) {
   return g;
 }
 
+/// The search is certified and returns a clique of the reference's size.
+void expect_maximum(const BitGraph& g, std::size_t clique_number, std::int64_t budget, const std::string& what) {
+  const Clique c = maximum_clique(g, budget);
+  EXPECT_TRUE(c.exact) << what;
+  EXPECT_TRUE(is_clique(g, c.vertices)) << what;
+  EXPECT_EQ(c.vertices.size(), clique_number) << what;
+}
+
 }  // namespace
 
 TEST(MaxClique, EqualsEnumerationOnSmallRandomGraphs) {
@@ -85,10 +94,7 @@ TEST(MaxClique, EqualsEnumerationOnSmallRandomGraphs) {
   for (const double p : {0.2, 0.5, 0.8}) {
     for (int trial = 0; trial < 10; ++trial) {
       const BitGraph g = random_graph(18, p, rng);
-      const Clique c = maximum_clique(g, 1'000'000);
-      EXPECT_TRUE(c.exact);
-      EXPECT_TRUE(is_clique(g, c.vertices)) << "p " << p << " trial " << trial;
-      EXPECT_EQ(c.vertices.size(), clique_number(g)) << "p " << p << " trial " << trial;
+      expect_maximum(g, clique_number(g), 1'000'000, "p " + std::to_string(p) + " trial " + std::to_string(trial));
     }
   }
 }
@@ -98,10 +104,7 @@ TEST(MaxClique, EqualsBronKerboschOnGraphsOfSeveralWords) {
   for (const std::size_t n : {65u, 130u, 200u})
     for (const double p : {0.1, 0.3, 0.5}) {
       const BitGraph g = random_graph(n, p, rng);
-      const Clique c = maximum_clique(g, 100'000'000);
-      EXPECT_TRUE(c.exact);
-      EXPECT_TRUE(is_clique(g, c.vertices)) << "n " << n << " p " << p;
-      EXPECT_EQ(c.vertices.size(), clique_number_bk(g)) << "n " << n << " p " << p;
+      expect_maximum(g, clique_number_bk(g), 100'000'000, "n " + std::to_string(n) + " p " + std::to_string(p));
     }
 }
 

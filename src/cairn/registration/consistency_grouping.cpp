@@ -22,15 +22,6 @@ void GroupingConfig::validate() const {
 
 namespace {
 
-void check_indices(std::span<const Vec3f> source, std::span<const Vec3f> target, std::span<const Correspondence> m) {
-  for (std::size_t i = 0; i < m.size(); ++i)
-    if (m[i].source >= source.size() || m[i].target >= target.size())
-      throw InputError("geometric_consistency_grouping: correspondence " + std::to_string(i) + " (" +
-                       std::to_string(m[i].source) + " -> " + std::to_string(m[i].target) +
-                       ") is out of range of the keypoints (" + std::to_string(source.size()) + " source, " +
-                       std::to_string(target.size()) + " target)");
-}
-
 /// PCL's pairwise test, in float as PCL: | |s_k − s_j| − |t_k − t_j| | ≤ size.
 inline bool consistent(const Vec3f& sk, const Vec3f& tk, const Vec3f& sj, const Vec3f& tj, double size) {
   const Vec3f dist_ref = tk - tj;
@@ -78,7 +69,7 @@ std::vector<std::vector<Correspondence>> consistency_clusters(std::span<const Ve
                                                               std::span<const Correspondence> matches,
                                                               const GroupingConfig& cfg) {
   cfg.validate();
-  check_indices(source_keypoints, target_keypoints, matches);
+  check_correspondence_indices(source_keypoints, target_keypoints, matches, "geometric_consistency_grouping");
   // Same container, same comparator, same std::sort as PCL: ties in distance end up in the same
   // order as PCL's.
   std::vector<Correspondence> sorted(matches.begin(), matches.end());
@@ -149,6 +140,15 @@ std::vector<std::vector<Correspondence>> consistency_clusters(std::span<const Ve
     }
   }
   return clusters;
+}
+
+void check_correspondence_indices(std::span<const Vec3f> source, std::span<const Vec3f> target,
+                                  std::span<const Correspondence> m, const std::string& what) {
+  for (std::size_t i = 0; i < m.size(); ++i)
+    if (m[i].source >= source.size() || m[i].target >= target.size())
+      throw InputError(what + ": correspondence " + std::to_string(i) + " (" + std::to_string(m[i].source) + " -> " +
+                       std::to_string(m[i].target) + ") is out of range of the keypoints (" +
+                       std::to_string(source.size()) + " source, " + std::to_string(target.size()) + " target)");
 }
 
 std::optional<TransformCandidate> fit_candidate(std::span<const Vec3f> source_keypoints,

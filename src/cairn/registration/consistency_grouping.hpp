@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "cairn/core/point_cloud.hpp"
@@ -67,6 +68,10 @@ struct TransformCandidate {
                                                                            std::span<const Vec3f> target_keypoints,
                                                                            std::span<const Correspondence> matches,
                                                                            const GroupingConfig& cfg);
+
+/// Throws InputError naming `what` when a correspondence indexes past the keypoints.
+void check_correspondence_indices(std::span<const Vec3f> source_keypoints, std::span<const Vec3f> target_keypoints,
+                                  std::span<const Correspondence> matches, const std::string& what);
 
 /// The rigid transform of a set of correspondences (Umeyama over all members), then `refits`
 /// times refitted on those of all the members the current fit places within `tolerance` of their partner

@@ -141,11 +141,7 @@ Clique maximum_clique(const BitGraph& g, std::int64_t node_budget) {
 CliqueEstimate max_clique_registration(std::span<const Vec3f> source_keypoints, std::span<const Vec3f> target_keypoints,
                                        std::span<const Correspondence> matches, const MaxCliqueConfig& cfg) {
   cfg.validate();
-  for (std::size_t i = 0; i < matches.size(); ++i)
-    if (matches[i].source >= source_keypoints.size() || matches[i].target >= target_keypoints.size())
-      throw InputError("max_clique_registration: correspondence " + std::to_string(i) +
-                       " is out of range of the keypoints (" + std::to_string(source_keypoints.size()) + " source, " +
-                       std::to_string(target_keypoints.size()) + " target)");
+  check_correspondence_indices(source_keypoints, target_keypoints, matches, "max_clique_registration");
   // The best-matching pairs, ties in input order.
   CliqueEstimate e;
   std::vector<Correspondence>& pairs = e.pairs;
