@@ -1,6 +1,7 @@
 #include "cairn/core/kdtree.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <nanoflann.hpp>
 #include <numeric>
@@ -48,6 +49,26 @@ struct CallbackResultSet {
     return true;
   }
   [[nodiscard]] float worstDist() const { return radius_sq; }
+};
+
+/// nanoflann result set keeping the nearest hit below a bound (the bound prunes from the start;
+/// like nanoflann's k = 1 search, a later hit replaces the kept one only when strictly closer).
+struct BoundedNearestResultSet {
+  float worst;
+  std::uint32_t index = 0;
+  bool found = false;
+  void init() {}
+  [[nodiscard]] std::size_t size() const { return found ? 1 : 0; }
+  [[nodiscard]] bool full() const { return true; }
+  bool addPoint(float d2, std::uint32_t i) {
+    if (d2 < worst) {
+      worst = d2;
+      index = i;
+      found = true;
+    }
+    return true;
+  }
+  [[nodiscard]] float worstDist() const { return worst; }
 };
 
 }  // namespace kdtree_detail
@@ -135,6 +156,22 @@ std::uint32_t KdTree::nearest(const Vec3f& query, float* sq_dist) const {
   if (impl_->count() > 0 && query.allFinite()) {
     impl_->index.knnSearch(query.data(), 1, &idx, &d2);
     idx = impl_->id()(idx);
+  }
+  if (sq_dist) *sq_dist = d2;
+  return idx;
+}
+
+std::uint32_t KdTree::nearest_within(const Vec3f& query, float max_sq_dist, float* sq_dist) const {
+  float d2 = std::numeric_limits<float>::infinity();
+  std::uint32_t idx = 0;
+  if (impl_->count() > 0 && query.allFinite() && max_sq_dist >= 0.0f) {
+    // Strictly below the next float up: every point at <= max_sq_dist is a candidate.
+    kdtree_detail::BoundedNearestResultSet rs{std::nextafter(max_sq_dist, std::numeric_limits<float>::infinity())};
+    impl_->index.findNeighbors(rs, query.data(), nanoflann::SearchParams(0, 0.0f, false));
+    if (rs.found) {
+      d2 = rs.worst;
+      idx = impl_->id()(rs.index);
+    }
   }
   if (sq_dist) *sq_dist = d2;
   return idx;

@@ -1,6 +1,8 @@
 #pragma once
 // The one kd-tree of cairn: nanoflann over a span of positions, no copy of the points.
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -19,6 +21,14 @@ struct Neighbors {
     sq_dists.clear();
   }
 };
+
+/// The smallest float squared distance >= distance² (double): the bound to give nearest_within
+/// when the caller keeps its own test of the distance in double precision.
+[[nodiscard]] inline float sq_dist_bound(double distance) {
+  const double sq = distance * distance;
+  const float b = float(sq);
+  return double(b) >= sq ? b : std::nextafter(b, std::numeric_limits<float>::infinity());
+}
 
 /// Static 3-D kd-tree. The indexed points must outlive the tree and stay unchanged.
 /// Queries are const and thread-safe. Points with a NaN or infinite coordinate are never found
@@ -43,6 +53,11 @@ class KdTree {
   /// Index of the nearest point; squared distance in *sq_dist (+inf, index 0, when nothing can be
   /// found: no finite point or a non-finite query).
   [[nodiscard]] std::uint32_t nearest(const Vec3f& query, float* sq_dist = nullptr) const;
+  /// nearest() when its squared distance is <= max_sq_dist: the same index and distance (ties
+  /// included); otherwise +inf in *sq_dist (index 0). The search never descends where nothing
+  /// that close can be, so queries with nothing near (the outliers of an ICP, points off an
+  /// object) cost little; callers that threshold the distance anyway get the same answers.
+  [[nodiscard]] std::uint32_t nearest_within(const Vec3f& query, float max_sq_dist, float* sq_dist = nullptr) const;
 
   /// Calls f(index, sq_dist) for each neighbour with distance < radius (no allocation).
   template <class F>

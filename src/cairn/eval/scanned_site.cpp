@@ -36,7 +36,7 @@ SurfaceTruth::SurfaceTruth(const sim::Site& site, const Vec3d& base, double radi
 
 std::int32_t SurfaceTruth::label_near(const Vec3d& world, double near) const {
   float d2 = 0.0f;
-  const std::uint32_t i = tree->nearest((world - cloud.origin).cast<float>(), &d2);
+  const std::uint32_t i = tree->nearest_within((world - cloud.origin).cast<float>(), sq_dist_bound(near), &d2);
   return double(d2) <= near * near ? cloud.labels[i] : kLabelNone;
 }
 

@@ -196,7 +196,7 @@ double Tracker::ghost_share(const PointCloud& map, const SurfaceTruth& now, cons
     const Vec3d w = E * map.world(i);
     if (now.label_near(w, cfg_.score_near) != kLabelNone) continue;  // on a true surface
     float d2 = 0.0f;
-    (void)former.nearest((w - former_.origin).cast<float>(), &d2);
+    (void)former.nearest_within((w - former_.origin).cast<float>(), near2, &d2);
     ghosts += d2 <= near2;
   }
   return double(ghosts) / double(map.size());

@@ -80,7 +80,7 @@ bool MapEditRegion::removes(const Vec3d& world) const {
   if ((world - edit_.center).squaredNorm() > edit_.radius * edit_.radius) return false;
   if (edit_.kind == MapEdit::Kind::remove_sphere) return true;
   float d2 = 0.0f;
-  (void)tree_->nearest((world - edit_.points.origin).cast<float>(), &d2);
+  (void)tree_->nearest_within((world - edit_.points.origin).cast<float>(), sq_dist_bound(edit_.distance), &d2);
   return double(d2) <= edit_.distance * edit_.distance;
 }
 

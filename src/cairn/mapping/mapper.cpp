@@ -529,7 +529,7 @@ Eigen::Isometry3d ObjectSurfaceTruth::map_offset(const PointCloud& map, double n
   const float near_sq = float(near_distance * near_distance);
   for (std::uint32_t i = 0; i < map.size(); ++i) {
     float d2 = 0.0f;
-    (void)object_tree_->nearest((map.world(i) - origin_).cast<float>(), &d2);
+    (void)object_tree_->nearest_within((map.world(i) - origin_).cast<float>(), near_sq, &d2);
     if (d2 < near_sq) keep.push_back(i);
   }
   constexpr std::size_t kMinPoints = 10;

@@ -30,7 +30,7 @@ std::size_t count_near(const std::vector<Vec3f>& points, const KdTree& tree, dou
   const float d2 = float(distance * distance);
   for (const Vec3f& p : points) {
     float sq = 0.0f;
-    (void)tree.nearest(p, &sq);
+    (void)tree.nearest_within(p, d2, &sq);
     if (sq <= d2) ++n;
   }
   return n;

@@ -28,7 +28,7 @@ Eigen::AlignedBox3d bounds(const PointCloud& c) {
 void touching(std::span<const Vec3f> a, const KdTree& tree, float d, std::size_t& n, Vec3d& sum) {
   for (const Vec3f& p : a) {
     float d2 = 0.0f;
-    (void)tree.nearest(p, &d2);
+    (void)tree.nearest_within(p, d * d, &d2);
     if (d2 <= d * d) ++n, sum += p.cast<double>();
   }
 }

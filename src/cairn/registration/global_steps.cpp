@@ -35,10 +35,11 @@ std::pair<double, std::size_t> sum_within(std::span<const Vec3f> q, const KdTree
   const std::size_t chunks = (q.size() + kQueryChunk - 1) / kQueryChunk;
   std::vector<double> sq(chunks, 0.0);
   std::vector<std::size_t> n(chunks, 0);
+  const float bound = sq_dist_bound(distance);
   tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t c) {
     for (std::size_t i = c * kQueryChunk; i < std::min(q.size(), (c + 1) * kQueryChunk); ++i) {
       float d2 = 0.0f;
-      (void)tree.nearest(q[i], &d2);
+      (void)tree.nearest_within(q[i], bound, &d2);
       if (double(d2) < distance * distance) {
         sq[c] += double(d2);
         ++n[c];
@@ -233,7 +234,7 @@ void merge_objects(const SegmentSet& src, const SegmentSet& tgt, const CentroidM
     for (const Vec3f& p : pts)
       if (!merged_points.empty()) {
         float d2 = 0.0f;
-        const std::uint32_t n = merged_tree.nearest(p, &d2);
+        const std::uint32_t n = merged_tree.nearest_within(p, absorb * absorb, &d2);
         if (d2 < absorb * absorb) ++contacts[merged_owner[n]];
       }
     const auto most = std::max_element(contacts.begin(), contacts.end());

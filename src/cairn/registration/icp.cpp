@@ -143,7 +143,7 @@ void accumulate(const Problem& pb, const Eigen::Isometry3d& T, std::size_t begin
   for (std::size_t k = begin; k < end; ++k) {
     const Vec3d p = T * pb.source[pb.order[k]].cast<double>();
     float d2 = 0.0f;
-    const std::uint32_t j = pb.target.tree().nearest(p.cast<float>(), &d2);
+    const std::uint32_t j = pb.target.tree().nearest_within(p.cast<float>(), pb.max_sq_dist, &d2);
     if (!(d2 <= pb.max_sq_dist)) continue;
     const Vec3d diff = p - tgt[j].cast<double>();
     if (pb.objective == Objective::point_to_plane) {

@@ -71,7 +71,7 @@ std::optional<Vec3d> align_translation(const std::vector<Vec3d>& source, const K
     for (const Vec3d& p : source) {
       float d2 = 0.0f;
       const Vec3d q = p + d;
-      const std::uint32_t j = tree.nearest(q.cast<float>(), &d2);
+      const std::uint32_t j = tree.nearest_within(q.cast<float>(), max_sq, &d2);
       if (d2 <= max_sq)
         residuals.push_back({d2, tree.points()[j].cast<double>() - q,
                              normals.empty() ? Vec3d::Zero() : Vec3d(normals[j].cast<double>())});
