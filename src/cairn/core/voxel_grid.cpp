@@ -2,9 +2,11 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <utility>
 #include <limits>
 #include <map>
 
@@ -35,6 +37,32 @@ Aabb finite_bounds(std::span<const Vec3f> points) {
   for (const Vec3f& p : points)
     if (p.allFinite()) box.min = box.min.cwiseMin(p), box.max = box.max.cwiseMax(p);
   return box;
+}
+
+/// Sorts `a` by key, ties by index — the order std::sort gives with operator< — when `a` comes in
+/// index order: an LSD radix sort over the key's bytes (stable, so ties keep their index order),
+/// skipping the bytes all keys share (a site's keys vary in ~4 of the 8). With it the voxel grid
+/// of a 151k-point map takes 4.7 ms instead of 7.4 (tbb::parallel_sort; bench_segmentation
+/// BM_Cairn_VoxelGrid, 2 cores).
+void sort_in_index_order(std::vector<KeyedIndex>& a) {
+  const std::size_t n = a.size();
+  if (n < 2) return;
+  constexpr int kBytes = 8;
+  std::array<std::array<std::uint32_t, 256>, kBytes> count{};
+  for (const KeyedIndex& k : a)
+    for (int b = 0; b < kBytes; ++b) ++count[std::size_t(b)][(k.key >> (8 * b)) & 0xff];
+  std::vector<KeyedIndex> buffer(n);
+  KeyedIndex* src = a.data();
+  KeyedIndex* dst = buffer.data();
+  for (int b = 0; b < kBytes; ++b) {
+    auto& c = count[std::size_t(b)];
+    if (std::find(c.begin(), c.end(), std::uint32_t(n)) != c.end()) continue;  // one value: no reordering
+    std::uint32_t start = 0;
+    for (std::uint32_t& x : c) start += std::exchange(x, start);
+    for (std::size_t i = 0; i < n; ++i) dst[c[(src[i].key >> (8 * b)) & 0xff]++] = src[i];
+    std::swap(src, dst);
+  }
+  if (src != a.data()) std::copy(src, src + n, a.data());
 }
 
 }  // namespace
@@ -71,7 +99,7 @@ VoxelPartition voxelize(std::span<const Vec3f> points, double leaf) {
                   std::uint32_t(i)};
     }
   });
-  tbb::parallel_sort(keyed.begin(), keyed.end());
+  sort_in_index_order(keyed);  // keyed[i].index == i: ties stay in index order
   while (!keyed.empty() && keyed.back().key == kNone) keyed.pop_back();  // the non-finite points
 
   part.order.resize(keyed.size());
