@@ -3,6 +3,7 @@
 
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <cmath>
@@ -231,14 +232,23 @@ GlobalRegistrationResult register_whole(const PointCloud& source, const PointClo
   return r;
 }
 
+/// The rotation turning the ground normal `n` onto `up`; identity without a ground plane.
+Eigen::Matrix3d turn_onto(const std::optional<Vec3d>& n, const Vec3d& up) {
+  if (!n) return Eigen::Matrix3d::Identity();
+  return Eigen::Quaterniond::FromTwoVectors(*n, up.normalized()).toRotationMatrix();
+}
+
 /// Step 1's levelling: the rotation turning the source's ground onto the target's ground plane
 /// (not onto z, so that both are segmented alike and the remaining unknowns are a yaw and a
 /// translation, up to the plane fits' noise). Identity when the source is gravity-aligned.
 Eigen::Matrix3d source_levelling(const PointCloud& source, const PointCloud& target, const GlobalRegistrationConfig& cfg) {
   if (cfg.gravity_aligned) return Eigen::Matrix3d::Identity();
-  std::optional<Vec3d> up_target = ground_normal(target.points, cfg.levelling);
+  // Two independent fits (each its own seeded RANSAC, serial inside): both at once.
+  std::optional<Vec3d> up_target, n_source;
+  tbb::parallel_invoke([&] { up_target = ground_normal(target.points, cfg.levelling); },
+                       [&] { n_source = ground_normal(source.points, cfg.levelling); });
   if (up_target && up_target->z() < 0.0) *up_target = -*up_target;  // the map's z is up
-  return levelling_rotation(source.points, up_target.value_or(Vec3d::UnitZ()), cfg.levelling);
+  return turn_onto(n_source, up_target.value_or(Vec3d::UnitZ()));
 }
 
 /// Step 1's segmentation of the levelled source (seen from above: its own terrain check
@@ -467,9 +477,7 @@ std::optional<Vec3d> ground_normal(std::span<const Vec3f> points, const Levellin
 }
 
 Eigen::Matrix3d levelling_rotation(std::span<const Vec3f> points, const Vec3d& up, const LevellingConfig& cfg) {
-  const std::optional<Vec3d> n = ground_normal(points, cfg);
-  if (!n) return Eigen::Matrix3d::Identity();
-  return Eigen::Quaterniond::FromTwoVectors(*n, up.normalized()).toRotationMatrix();
+  return turn_onto(ground_normal(points, cfg), up);
 }
 
 GlobalRegistrationResult register_global(const PointCloud& source, const PointCloud& target,
