@@ -166,6 +166,62 @@ TEST(Segmentation, BinaryScoreCountsAgainstTheTruth) {
   EXPECT_THROW((void)score_binary({1}, {1, 0}), InputError);
 }
 
+// score_segmentation, which every segmentation acceptance test counts with, on a hand-made
+// labelling whose answer is known: a stone found (a 4 % crumb elsewhere is not a second segment),
+// a stone cut in two, two stones merged into one segment, a stone no segment holds, a terrain
+// segment, and truth values outside [0, num_objects) counted as terrain.
+TEST(Segmentation, ScoreSegmentationKnownAnswers) {
+  std::vector<std::int32_t> labels, truth;
+  const auto add = [&](std::int32_t object, std::int32_t segment, int n) {
+    for (int i = 0; i < n; ++i) truth.push_back(object), labels.push_back(segment);
+  };
+  add(0, 10, 96);  // stone 0: 96 % in segment 10 ...
+  add(0, 11, 4);   // ... and a 4 % crumb (below split_fraction 5 %) in segment 11
+  add(-1, 10, 2);  // terrain in segment 10: purity 96 / 98
+  add(1, 20, 60);  // stone 1 cut in two: 60 / 40
+  add(1, 21, 40);
+  add(2, 30, 50);  // stones 2 and 3 merged in segment 30
+  add(3, 30, 50);
+  add(4, -1, 30);  // stone 4: seen by no segment
+  add(-1, 40, 150);  // a terrain segment ...
+  add(9, 40, 5);     // ... with points of an "object" beyond num_objects: terrain too
+  add(-1, -1, 500);  // unsegmented terrain
+  const SegmentationScore s = score_segmentation(labels, truth, 5);
+  ASSERT_EQ(s.objects.size(), 5u);
+  EXPECT_EQ(s.segments, 6u);  // 10, 11, 20, 21, 30, 40
+  EXPECT_EQ(s.terrain_segments, 1u);
+  EXPECT_EQ(s.merged, 1u);
+  const ObjectScore& o0 = s.objects[0];
+  EXPECT_EQ(o0.points, 100u);
+  EXPECT_EQ(o0.best_segment, 10);
+  EXPECT_EQ(o0.best_overlap, 96u);
+  EXPECT_EQ(o0.significant_segments, 1u);
+  EXPECT_EQ(o0.segment_points, 98u);
+  EXPECT_DOUBLE_EQ(o0.completeness(), 0.96);
+  EXPECT_DOUBLE_EQ(o0.purity(), 96.0 / 98.0);
+  EXPECT_EQ(s.objects[1].best_segment, 20);
+  EXPECT_EQ(s.objects[1].significant_segments, 2u);
+  EXPECT_DOUBLE_EQ(s.objects[1].completeness(), 0.6);
+  EXPECT_DOUBLE_EQ(s.objects[2].completeness(), 1.0);
+  EXPECT_DOUBLE_EQ(s.objects[2].purity(), 0.5);
+  EXPECT_EQ(s.objects[4].best_segment, -1);
+  EXPECT_EQ(s.objects[4].completeness(), 0.0);
+  EXPECT_EQ(s.objects[4].purity(), 0.0);
+  // Found: one segment, >= 95 % complete, not shared: stone 0 only (the crumb does not count);
+  // at 0.97 not even it. Single (piles): >= 90 % complete and pure: stone 0; the merged stones are
+  // complete but half pure.
+  EXPECT_EQ(s.found(), 1u);
+  EXPECT_EQ(s.found(0.97), 0u);
+  EXPECT_EQ(s.single(), 1u);
+  EXPECT_EQ(s.single(0.9, 0.5), 3u);  // stones 0, 2 and 3
+  const nlohmann::json j = s.to_json();
+  EXPECT_EQ(j.at("found").get<int>(), 1);
+  EXPECT_EQ(j.at("merged_segments").get<int>(), 1);
+  EXPECT_EQ(j.at("completeness").size(), 5u);
+  labels.pop_back();
+  EXPECT_THROW((void)score_segmentation(labels, truth, 5), InputError);
+}
+
 // SMRF's slope term (GroundConfig::slope_height): on a plane rising 1 m per metre the ground band
 // is d_plane + slope_height × 1 (away from the border, where the filter's windows are cut), so
 // points 0.3 m above the 45° slope are ground with it and not without; on flat ground the band
