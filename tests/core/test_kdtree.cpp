@@ -75,41 +75,44 @@ TEST(KdTree, NearestAndSmallTrees) {
 // point is within it (ties between duplicated points resolved alike), +inf otherwise. Every
 // threshold caller (ICP, the scale check, map edits, association) relies on that equality.
 TEST(KdTree, NearestWithinIsNearestCutAtTheBound) {
-  auto pts = random_points(4000, 5);
-  for (std::size_t i = 0; i < 400; ++i) pts.push_back(pts[i * 7]);  // exact duplicates: ties
-  pts.push_back(Vec3f(std::nanf(""), 0, 0));                          // never found
+  auto finite = random_points(4000, 5);
+  for (std::size_t i = 0; i < 400; ++i) finite.push_back(finite[i * 7]);  // exact duplicates: ties
+  auto with_nan = finite;
+  with_nan.push_back(Vec3f(std::nanf(""), 0, 0));  // never found (the tree indexes a compact copy)
   const auto queries = random_points(500, 6);
-  const KdTree tree(pts);
-  std::size_t inside = 0, outside = 0;
-  for (const float bound : {0.0f, 1e-4f, 2.5e-3f, 0.01f, 1.0f}) {
-    for (std::size_t k = 0; k < queries.size(); ++k) {
-      const Vec3f q = k % 5 == 0 ? pts[k] : queries[k];  // some queries on points: distance 0
-      float d_all = -1.0f, d_cut = -1.0f;
-      const std::uint32_t i_all = tree.nearest(q, &d_all);
-      const std::uint32_t i_cut = tree.nearest_within(q, bound, &d_cut);
-      if (d_all <= bound) {
-        ++inside;
-        EXPECT_EQ(i_cut, i_all);
-        EXPECT_EQ(d_cut, d_all);
-      } else {
-        ++outside;
-        EXPECT_TRUE(std::isinf(d_cut));
+  for (const auto* pts : {&finite, &with_nan}) {
+    const KdTree tree(*pts);
+    std::size_t inside = 0, outside = 0;
+    for (const float bound : {0.0f, 1e-4f, 2.5e-3f, 0.01f, 1.0f}) {
+      for (std::size_t k = 0; k < queries.size(); ++k) {
+        const Vec3f q = k % 5 == 0 ? (*pts)[k] : queries[k];  // some queries on points: distance 0
+        float d_all = -1.0f, d_cut = -1.0f;
+        const std::uint32_t i_all = tree.nearest(q, &d_all);
+        const std::uint32_t i_cut = tree.nearest_within(q, bound, &d_cut);
+        if (d_all <= bound) {
+          ++inside;
+          EXPECT_EQ(i_cut, i_all);
+          EXPECT_EQ(d_cut, d_all);
+        } else {
+          ++outside;
+          EXPECT_TRUE(std::isinf(d_cut));
+        }
       }
     }
+    EXPECT_GT(inside, 300u);
+    EXPECT_GT(outside, 300u);
     // A point exactly at the bound is found (the bound is inclusive, as the callers' tests are).
     float d = -1.0f;
-    const Vec3f q = pts[3] + Vec3f(0.0f, 0.0f, 0.01f);
-    const float exact = (pts[tree.nearest(q)] - q).squaredNorm();
+    const Vec3f q = (*pts)[3] + Vec3f(0.0f, 0.0f, 0.01f);
+    const float exact = ((*pts)[tree.nearest(q)] - q).squaredNorm();
     EXPECT_EQ(tree.nearest_within(q, exact, &d), tree.nearest(q));
     EXPECT_EQ(d, exact);
+    (void)tree.nearest_within({std::nanf(""), 0, 0}, 1.0f, &d);  // a NaN query finds nothing
+    EXPECT_TRUE(std::isinf(d));
+    (void)tree.nearest_within(queries[0], -1.0f, &d);  // nor a negative bound
+    EXPECT_TRUE(std::isinf(d));
   }
-  EXPECT_GT(inside, 300u);
-  EXPECT_GT(outside, 300u);
   float d = 0.0f;
-  (void)tree.nearest_within({std::nanf(""), 0, 0}, 1.0f, &d);  // a NaN query finds nothing
-  EXPECT_TRUE(std::isinf(d));
-  (void)tree.nearest_within(queries[0], -1.0f, &d);  // nor a negative bound
-  EXPECT_TRUE(std::isinf(d));
   const std::vector<Vec3f> none;
   (void)KdTree(none).nearest_within({0, 0, 0}, 1.0f, &d);
   EXPECT_TRUE(std::isinf(d));

@@ -165,10 +165,13 @@ std::uint32_t KdTree::nearest_within(const Vec3f& query, float max_sq_dist, floa
   float d2 = std::numeric_limits<float>::infinity();
   std::uint32_t idx = 0;
   if (impl_->count() > 0 && query.allFinite() && max_sq_dist >= 0.0f) {
-    // Strictly below the next float up: every point at <= max_sq_dist is a candidate.
-    kdtree_detail::BoundedNearestResultSet rs{std::nextafter(max_sq_dist, std::numeric_limits<float>::infinity())};
+    // The search prunes with a slightly larger bound: nanoflann's lower bound of a cell's distance
+    // is accumulated in float and may exceed the true distance of a point on the cell's face by a
+    // few ulps; the answer is then kept only within max_sq_dist itself.
+    constexpr float kRelativeSlack = 1e-4f, kAbsoluteSlack = 1e-10f;  // [m²]: far below any distance test
+    kdtree_detail::BoundedNearestResultSet rs{max_sq_dist * (1.0f + kRelativeSlack) + kAbsoluteSlack};
     impl_->index.findNeighbors(rs, query.data(), nanoflann::SearchParams(0, 0.0f, false));
-    if (rs.found) {
+    if (rs.found && rs.worst <= max_sq_dist) {
       d2 = rs.worst;
       idx = impl_->id()(rs.index);
     }

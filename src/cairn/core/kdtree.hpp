@@ -54,7 +54,8 @@ class KdTree {
   /// found: no finite point or a non-finite query).
   [[nodiscard]] std::uint32_t nearest(const Vec3f& query, float* sq_dist = nullptr) const;
   /// nearest() when its squared distance is <= max_sq_dist: the same index and distance (ties
-  /// included); otherwise +inf in *sq_dist (index 0). The search never descends where nothing
+  /// included; the pruning keeps a small slack over nanoflann's float rounding of cell bounds);
+  /// otherwise +inf in *sq_dist (index 0). The search never descends where nothing
   /// that close can be, so queries with nothing near (the outliers of an ICP, points off an
   /// object) cost little; callers that threshold the distance anyway get the same answers.
   [[nodiscard]] std::uint32_t nearest_within(const Vec3f& query, float max_sq_dist, float* sq_dist = nullptr) const;

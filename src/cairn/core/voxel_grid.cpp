@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <utility>
 #include <limits>
 #include <map>
+#include <utility>
 
 #include "cairn/core/error.hpp"
 
