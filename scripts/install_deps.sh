@@ -9,7 +9,8 @@ cd "$(dirname "$0")/.."
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 # kernels: eigen nanoflann tbb; config/CLI/logging: yaml-cpp cli11 spdlog fmt nlohmann-json;
-# pictures: zlib; simulator: embree (ray casting), mujoco (grasp physics); mapping: ceres;
+# pictures: zlib; simulator: embree (ray casting), mujoco (grasp physics), qhull (convex parts of
+# stones; MuJoCo's own library depends on it); mapping: ceres;
 # object database: sqlite3; report: npm (three.js); ROS 1 from Debian (ros/, --bag, the nodes):
 # rosbag storage, roscpp, the message headers, and the message definitions + gencpp/genpy that
 # generate cairn's own service types.
@@ -17,7 +18,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config python3
   libeigen3-dev libnanoflann-dev libtbb-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev zlib1g-dev
-  libembree-dev libmujoco-dev libceres-dev libsqlite3-dev
+  libembree-dev libmujoco-dev libqhull-dev libceres-dev libsqlite3-dev
   librosbag-storage-dev libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libtf2-msgs-dev libstd-msgs-dev
   pluginlib-dev librcpputils-dev libament-index-cpp-dev libroscpp-dev libstd-srvs-dev libvisualization-msgs-dev
   ros-std-msgs ros-geometry-msgs ros-sensor-msgs python3-gencpp python3-genpy

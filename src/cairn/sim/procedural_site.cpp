@@ -9,7 +9,11 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <mutex>
 #include <numbers>
+#include <optional>
+#include <sstream>
 #include <string>
 #include <unordered_map>
 
@@ -116,6 +120,11 @@ void validate(const StoneConfig& c) {
   require(c.real_fraction >= 0 && c.real_fraction <= 1, "StoneConfig: real_fraction not in [0,1]");
   require(c.real_fraction == 0 || !c.real_meshes.empty(),
           "StoneConfig: real_fraction > 0 needs real_meshes");
+  const ConvexDecompositionConfig& d = c.collision;
+  require(std::isfinite(d.max_excess), "StoneConfig: collision.max_excess not finite");
+  require(d.max_parts >= 1 && d.planes_per_axis >= 1 && d.grid_cells >= 2,
+          "StoneConfig: collision needs max_parts >= 1, planes_per_axis >= 1, grid_cells >= 2");
+  require(d.min_part_share > 0 && d.min_part_share < 0.5, "StoneConfig: collision.min_part_share not in (0, 0.5)");
 }
 
 void validate(const SamplingConfig& c, const TerrainConfig& t) {
@@ -330,6 +339,7 @@ double resting_height(const std::vector<Eigen::Vector3d>& v, const Vec2d& spot,
 /// Shape of one stone in its local frame (centred at the volume centroid, shortest axis ~z).
 struct StoneShape {
   RawMesh local;
+  std::vector<CollisionPart> parts;  // collision parts on `local`
   double volume = 0.0;
   bool flat = false;
   std::string source = "procedural";
@@ -459,6 +469,25 @@ Vec2d pile_spot(const std::vector<Eigen::Vector3d>& v, const RawMesh& local, dou
   return centre + far * dir;
 }
 
+/// The collision parts of a real stone mesh at unit volume, decomposed once per process and
+/// configuration (0.1–1.4 s for the shipped meshes; many sites reuse them).
+std::vector<CollisionPart> real_stone_parts(const std::string& path, const RawMesh& unit,
+                                            const ConvexDecompositionConfig& c) {
+  static std::mutex guard;
+  static std::map<std::string, std::vector<CollisionPart>> done;
+  std::ostringstream key;
+  key.precision(17);
+  key << path << ' ' << unit.v.size() << ' ' << unit.t.size() << ' ' << c.max_excess << ' ' << c.max_parts << ' '
+      << c.planes_per_axis << ' ' << c.grid_cells << ' ' << c.min_part_share;
+  {
+    const std::lock_guard<std::mutex> lock(guard);
+    if (const auto it = done.find(key.str()); it != done.end()) return it->second;
+  }
+  std::vector<CollisionPart> parts = decompose_convex(unit.v, unit.t, c).parts;
+  const std::lock_guard<std::mutex> lock(guard);
+  return done.emplace(key.str(), std::move(parts)).first->second;
+}
+
 /// One stone: orientation, spot and resting height for a given shape.
 Stone place_stone(StoneShape shape, std::vector<Footprint>& footprints, const std::vector<Stone>& placed,
                   const std::vector<SolidMesh>& solids, const StoneConfig& c, const Terrain& terrain,
@@ -489,6 +518,7 @@ Stone place_stone(StoneShape shape, std::vector<Footprint>& footprints, const st
   for (auto& p : v) p += stone.centroid;
   stone.mesh = to_mesh(v, shape.local.t);
   stone.bounds = bounding_box(to_raw(stone.mesh).v);
+  stone.collision_parts = std::move(shape.parts);
   return stone;
 }
 
@@ -733,6 +763,7 @@ Site generate_site(const SiteConfig& config, std::uint64_t seed) {
       real_index[order[i]] = i % real.size();
     }
   }
+  std::vector<std::optional<std::vector<CollisionPart>>> real_parts(real.size());  // decomposed once each
   std::vector<Footprint> footprints;
   std::vector<SolidMesh> solids;
   const std::vector<bool> flat = flat_flags(c, rng);
@@ -742,6 +773,9 @@ Site generate_site(const SiteConfig& config, std::uint64_t seed) {
     if (use_real[k]) {
       const io::Mesh& unit = real[real_index[k]];
       shape.local = to_raw(unit);
+      std::optional<std::vector<CollisionPart>>& parts = real_parts[real_index[k]];
+      if (!parts) parts = real_stone_parts(c.real_meshes[real_index[k]], shape.local, c.collision);
+      shape.parts = *parts;  // the cuts scale with the stone
       const double scale = std::cbrt(shape.volume);
       for (auto& p : shape.local.v) p *= scale;
       const Eigen::Vector3d size = bounding_box(shape.local.v).sizes();
@@ -750,12 +784,28 @@ Site generate_site(const SiteConfig& config, std::uint64_t seed) {
     } else {
       shape.flat = flat[k];
       shape.local = to_raw(make_stone_mesh(shape.volume, flat[k], rng));
+      shape.parts = decompose_convex(shape.local.v, shape.local.t, c.collision).parts;
     }
     site.stones.push_back(
         place_stone(std::move(shape), footprints, site.stones, solids, c, site.terrain, rng));
     solids.emplace_back(site.stones.back().mesh);
   }
   return site;
+}
+
+std::vector<std::vector<Eigen::Vector3d>> collision_point_sets(const Stone& stone) {
+  const std::vector<Eigen::Vector3d> v = to_raw(stone.mesh).v;
+  if (stone.collision_parts.empty()) return {v};
+  std::vector<std::vector<Eigen::Vector3d>> sets;
+  for (const CollisionPart& part : stone.collision_parts) {
+    for (const MeshPoint& q : part) {
+      if (std::max({q.i[0], q.i[1], q.i[2], q.i[3]}) >= v.size()) {
+        throw InputError("stone: a collision part refers to a vertex its mesh does not have (mesh replaced?)");
+      }
+    }
+    sets.push_back(part_points(part, v));
+  }
+  return sets;
 }
 
 SampledSite sample_site(const Site& site, const SamplingConfig& config, std::uint64_t seed) {

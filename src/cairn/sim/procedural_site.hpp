@@ -15,6 +15,7 @@
 
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/point_cloud.hpp"
+#include "cairn/sim/convex_decomposition.hpp"
 
 namespace cairn::sim {
 
@@ -67,6 +68,9 @@ struct StoneConfig {
   /// Tip each stone quasi-statically until its centroid lies over its support on the terrain, so
   /// it rests stably (checked in MuJoCo: tests/physics). Off by default to keep older sites.
   bool settle = false;
+  /// The stones' collision shapes in the physics: convex parts where a mesh's hull adds more
+  /// than max_excess of its volume (the real scanned stones' concavities).
+  ConvexDecompositionConfig collision;
 
   template <class V>
   void visit(V& v) {
@@ -88,6 +92,7 @@ struct StoneConfig {
     v("real_meshes", real_meshes, "PLY meshes of real scanned stones");
     v("real_fraction", real_fraction, "share of stones made from real meshes");
     v("settle", settle, "tip stones until they rest stably on the terrain");
+    v("collision", collision, "convex parts of the stones' collision shapes (physics)");
   }
 };
 
@@ -172,7 +177,15 @@ struct Stone {
   std::string source = "procedural";  // or the file name of the real scanned mesh
   double yaw = 0.0;            // [rad] rotation about the vertical applied to the stone's mesh
   Eigen::AlignedBox3d bounds;  // world-frame bounding box of the mesh
+  /// Convex parts the physics collides (points fixed to the mesh's vertices by index, so they
+  /// move with it; replacing the mesh invalidates them); empty: the mesh's own hull
+  /// (StoneConfig::collision).
+  std::vector<CollisionPart> collision_parts;
 };
+
+/// The point sets whose convex hulls the physics collides for a stone, in the world frame: one
+/// per collision part, or all mesh vertices when it has none.
+std::vector<std::vector<Eigen::Vector3d>> collision_point_sets(const Stone& stone);
 
 struct Site {
   TerrainConfig terrain_config;

@@ -35,8 +35,10 @@ struct SimulationConfig {
   PhysicsConfig physics;             // MuJoCo: the world at rest, grasp trials
   /// Settle the generated site in the physics before anything is sensed (settle_site, stones
   /// generated resting on the ground), so the sensors, the truth files and every later physics
-  /// scene start from one world at rest. Off by default until every site comes to rest (issue
-  /// #15: 6 of 20 exp1 sites do not yet; docs/simulator-physics.md); `cairn grasp-trial` settles.
+  /// scene start from one world at rest (every generated site of seeds 1-50 of each scenario
+  /// does: docs/simulator-physics.md). Off by default for `cairn simulate` until the perception
+  /// figures measured on its sites are re-measured on settled ones (issue #15); the tracked
+  /// experiments and `cairn grasp-trial` settle.
   bool settle_in_physics = false;
   double terrain_mesh_spacing = 0.05;  // [m] triangulation of the terrain for ray casting
   bool with_drone = true;             // fly the drone survey

@@ -1,6 +1,6 @@
 #pragma once
 // Physics grasp trials (issue #4, item 6): the procedural site in MuJoCo 2.2.2 — stones as rigid
-// bodies (MuJoCo collides the convex hulls of their meshes; mass and inertia come from the closed
+// bodies (MuJoCo collides the convex hulls of their meshes' convex parts; mass and inertia come from the closed
 // meshes at rock density), the terrain as a height field sampled from Terrain::height around the
 // stones, and the two-jaw angular gripper of robot/gripper.hpp (palm, two jaws on coupled pivots,
 // one hydraulic DoF) — and the execution of one grasp (a GraspPlan, robot/grasp_plan.hpp):
@@ -47,8 +47,9 @@ struct PhysicsConfig {
   /// touching stones at rest stay at rest (0: off).
   int noslip_iterations = 10;
   double rock_density = 2600.0;      // [kg/m^3] granite/limestone boulders
-  /// Collision hull of a stone: MuJoCo's convex hull of the mesh's extreme vertices along the
-  /// 10 * 4^s + 2 directions of an icosphere with s = hull_subdivisions (< 0: of every vertex).
+  /// Collision hulls of a stone (one per convex part, Stone::collision_parts, else of the whole
+  /// mesh): MuJoCo's convex hull of the part's extreme points along the 10 * 4^s + 2 directions
+  /// of an icosphere with s = hull_subdivisions (< 0: of every point).
   int hull_subdivisions = 3;
   double friction = 0.6;             // sliding friction of every contact (rock–rock, rock–steel)
   double torsional_friction = 0.02;  // [m] torsional friction (resists spinning about a contact)
@@ -346,8 +347,9 @@ struct SiteSettleResult {
 };
 SiteSettleResult settle_site(Site& site, const PhysicsConfig& config);
 
-/// Volume [m^3] of each stone's collision hull as MuJoCo builds it (hull_subdivisions): the
-/// convex hull adds what the mesh's concavities leave out (docs/simulator-physics.md).
+/// Volume [m^3] of each stone's collision shape as MuJoCo builds it (hull_subdivisions): the
+/// hulls of its convex parts together, which add what the parts' concavities leave out
+/// (docs/simulator-physics.md).
 std::vector<double> collision_hull_volumes(const Site& site, const PhysicsConfig& config);
 
 /// Moves the stones of `site` by their poses (mesh vertices, centroid, bounds, yaw += rotation

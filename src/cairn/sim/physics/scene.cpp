@@ -24,9 +24,16 @@ constexpr double kMinElevationRange = 1e-3;  // [m] MuJoCo needs a positive heig
 // than the simulation itself (0.6 s per scene at njmax 3000). Measured: a stone on the height
 // field has at most ~20 contacts at 0.1 m resolution, a gripper geom a few.
 constexpr int kContactsPerStone = mjMAXCONPAIR + 14;  // its height-field pair + neighbours
+// A further convex part of a stone (Stone::collision_parts): a stone's contacts spread over its
+// parts (measured: a 6-stone pile with 8 extra parts used at most 94 of 416 + 8 x 16 contacts).
+constexpr int kContactsPerExtraPart = 4;
 constexpr int kContactsPerGripperGeom = 8;
 constexpr int kContactsSpare = 32;
-constexpr int kRowsPerContact = 10;          // condim 6, pyramidal: 2 (6 - 1) rows
+constexpr int kCondim = 6;                   // every contact: sliding, torsional and rolling friction
+// Constraint rows per contact: 2 (condim - 1) for pyramidal cones, condim for elliptic ones. The
+// njmax^2 buffers make this the largest cost of building a scene (settling a pile builds many).
+int rows_per_contact(const std::string& cone) { return cone == "elliptic" ? kCondim : 2 * (kCondim - 1); }
+constexpr int kNonContactRows = 16;  // the arm's weld (6), the jaws' coupling (1) and limits (2), spare
 constexpr double kImpedanceSpan = 0.04;      // solimp dmin = dmax - span
 
 /// MuJoCo reports fatal errors through this hook; the default prints and calls exit().
@@ -62,13 +69,16 @@ MassProperties mass_properties(const io::Mesh& mesh, const Vector3d& reference) 
   return mp;
 }
 
-/// The vertices MuJoCo builds a stone's collision hull from: all of them (subdivisions < 0), or
-/// the extreme vertex along each vertex direction of an icosphere with that many subdivisions
+/// The points MuJoCo builds a collision hull from: all of them (subdivisions < 0), or the
+/// extreme point along each vertex direction of an icosphere with that many subdivisions
 /// (10 * 4^s + 2 directions), ascending and unique. Fewer hull vertices make every
 /// support-function walk of MuJoCo's convex collisions shorter (docs/simulator-physics.md).
-std::vector<std::size_t> collision_vertices(const io::Mesh& mesh, int subdivisions) {
+/// Compared in float, as the stones' float vertices always were (site coordinates are metres
+/// from the site's origin): in double, near-ties pick other vertices, and that rounding-level
+/// change of the hulls alone changes which stones exp1 seed 1's three-stone experiment tracks.
+std::vector<std::size_t> collision_vertices(const std::vector<Vector3d>& points, int subdivisions) {
   std::vector<std::size_t> out;
-  const std::size_t n = mesh.vertices.size();
+  const std::size_t n = points.size();
   if (subdivisions < 0 || n <= 10 * (std::size_t{1} << (2 * subdivisions)) + 2) {
     for (std::size_t i = 0; i < n; ++i) out.push_back(i);
     return out;
@@ -79,7 +89,7 @@ std::vector<std::size_t> collision_vertices(const io::Mesh& mesh, int subdivisio
     std::size_t best = 0;
     float best_dot = -INFINITY;
     for (std::size_t i = 0; i < n; ++i) {
-      const float dot = dir.dot(mesh.vertices.points[i]);
+      const float dot = dir.dot(points[i].cast<float>());
       if (dot > best_dot) {
         best_dot = dot;
         best = i;
@@ -204,6 +214,16 @@ std::vector<Triangle> hull_triangles(const mjModel* m, int g, const Vector3d& ce
   return out;
 }
 
+/// The collision geoms of stone k (its convex parts).
+std::vector<int> stone_geoms(const mjModel* m, std::size_t k) {
+  const int body = mj_name2id(m, mjOBJ_BODY, ("stone" + std::to_string(k)).c_str());
+  std::vector<int> out;
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (m->geom_bodyid[g] == body) out.push_back(g);
+  }
+  return out;
+}
+
 }  // namespace
 
 std::string entity_name(int e) {
@@ -271,13 +291,19 @@ std::string mjcf_header(const PhysicsConfig& c, int max_contacts) {
     << "<option timestep=\"" << c.timestep << "\" gravity=\"0 0 -9.81\" cone=\"" << c.cone
     << "\" jacobian=\"dense\" noslip_iterations=\"" << c.noslip_iterations << "\" iterations=\""
     << c.solver_iterations << "\" tolerance=\"" << c.solver_tolerance << "\"/>\n"
-    << "<size nconmax=\"" << max_contacts << "\" njmax=\"" << max_contacts * kRowsPerContact << "\"/>\n"
-    << "<default><geom condim=\"6\" friction=\"" << friction << "\" solref=\"" << c.contact_timeconst
+    << "<size nconmax=\"" << max_contacts << "\" njmax=\"" << max_contacts * rows_per_contact(c.cone) + kNonContactRows
+    << "\"/>\n"
+    << "<default><geom condim=\"" << kCondim << "\" friction=\"" << friction << "\" solref=\"" << c.contact_timeconst
     << " 1\" solimp=\"" << c.contact_impedance - kImpedanceSpan << ' ' << c.contact_impedance << " 0.001\"/></default>\n";
   return x.str();
 }
 
-/// The height field and one collision mesh per stone (its hull vertices about its centroid).
+std::string part_name(std::size_t stone, std::size_t part) {
+  return "stone" + std::to_string(stone) + "_" + std::to_string(part);
+}
+
+/// The height field and the collision meshes of each stone: one per convex part (Stone::
+/// collision_parts; the whole mesh when it has none), its hull vertices about the centroid.
 std::string mjcf_assets(const Site& site, const StoneBodies& bodies, const HeightField& hf, double range,
                         const PhysicsConfig& c) {
   std::ostringstream x;
@@ -286,13 +312,15 @@ std::string mjcf_assets(const Site& site, const StoneBodies& bodies, const Heigh
     << 0.5 * (hf.ncol - 1) * hf.spacing << ' ' << 0.5 * (hf.nrow - 1) * hf.spacing << ' ' << range << ' '
     << c.terrain_base << "\"/>\n";
   for (std::size_t k = 0; k < site.stones.size(); ++k) {
-    const Stone& s = site.stones[k];
-    x << "<mesh name=\"stone" << k << "\" vertex=\"";
-    const std::vector<std::size_t> hull = collision_vertices(s.mesh, c.hull_subdivisions);
-    for (std::size_t i = 0; i < hull.size(); ++i) {
-      x << (i ? " " : "") << vec_attr(s.mesh.vertices.world(hull[i]) - bodies.props[k].centroid);
+    const std::vector<std::vector<Vector3d>> parts = collision_point_sets(site.stones[k]);
+    for (std::size_t p = 0; p < parts.size(); ++p) {
+      x << "<mesh name=\"" << part_name(k, p) << "\" vertex=\"";
+      const std::vector<std::size_t> hull = collision_vertices(parts[p], c.hull_subdivisions);
+      for (std::size_t i = 0; i < hull.size(); ++i) {
+        x << (i ? " " : "") << vec_attr(parts[p][hull[i]] - bodies.props[k].centroid);
+      }
+      x << "\"/>\n";
     }
-    x << "\"/>\n";
   }
   x << "</asset>\n";
   return x.str();
@@ -314,8 +342,11 @@ std::string mjcf_world(const Site& site, const SceneSpec& spec, const std::vecto
     x << "<body name=\"stone" << k << "\" pos=\"" << vec_attr(S * bodies.props[k].centroid) << "\" quat=\""
       << quat_attr(S.linear()) << "\">\n" << (free[k] ? "<freejoint/>\n" : "")
       << "<inertial pos=\"0 0 0\" mass=\"" << mass << "\" fullinertia=\"" << I(0, 0) << ' ' << I(1, 1) << ' '
-      << I(2, 2) << ' ' << I(0, 1) << ' ' << I(0, 2) << ' ' << I(1, 2) << "\"/>\n"
-      << "<geom name=\"stone" << k << "\" type=\"mesh\" mesh=\"stone" << k << "\"/>\n</body>\n";
+      << I(2, 2) << ' ' << I(0, 1) << ' ' << I(0, 2) << ' ' << I(1, 2) << "\"/>\n";
+    for (std::size_t p = 0; p < std::max<std::size_t>(1, site.stones[k].collision_parts.size()); ++p) {
+      x << "<geom name=\"" << part_name(k, p) << "\" type=\"mesh\" mesh=\"" << part_name(k, p) << "\"/>\n";
+    }
+    x << "</body>\n";
   }
   return x.str();
 }
@@ -445,7 +476,12 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
   const double range = std::max(hf.zmax - hf.zmin, kMinElevationRange);
   const int num_free = static_cast<int>(std::count(free.begin(), free.end(), true));
   const int gripper_geoms = spec.with_gripper ? 1 + 2 * config.jaw_pads * config.jaw_pads : 0;
-  const int max_contacts = kContactsPerStone * num_free + kContactsPerGripperGeom * gripper_geoms + kContactsSpare;
+  int extra_parts = 0;  // free stones touch the parts of static ones too
+  for (const Stone& s : site.stones) {
+    if (s.collision_parts.size() > 1) extra_parts += static_cast<int>(s.collision_parts.size()) - 1;
+  }
+  const int max_contacts = kContactsPerStone * num_free + kContactsPerExtraPart * extra_parts +
+                           kContactsPerGripperGeom * gripper_geoms + kContactsSpare;
   std::string xml = mjcf_header(config, max_contacts) + mjcf_assets(site, bodies, hf, range, config) +
                     "<worldbody>\n" + mjcf_world(site, spec, free, bodies, hf, config);
   if (spec.with_gripper) xml += mjcf_gripper(spec, gripper, config);
@@ -462,9 +498,7 @@ Scene::Scene(const Site& site, const SceneSpec& spec, const GripperConfig& gripp
     if (carve) {  // seats under the stones' hulls at their placement in the Site
       for (std::size_t k = 0; k < n; ++k) {
         if (!free[k]) continue;
-        const std::string name = "stone" + std::to_string(k);
-        carve_seats(hf, hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), bodies.props[k].centroid),
-                    config.seat_clearance);
+        for (int g : stone_geoms(m_, k)) carve_seats(hf, hull_triangles(m_, g, bodies.props[k].centroid), config.seat_clearance);
       }
     }
     write_height_field(m_, hf, range);
@@ -494,7 +528,7 @@ void Scene::index_entities(const std::vector<bool>& free, bool with_gripper) {
     const int body = mj_name2id(m_, mjOBJ_BODY, name.c_str());
     stone_body_.push_back(body);
     stone_qvel_.push_back(free[k] ? m_->jnt_dofadr[m_->body_jntadr[body]] : -1);
-    geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, name.c_str()))] = static_cast<int>(k);
+    for (int g : stone_geoms(m_, k)) geom_entity_[static_cast<std::size_t>(g)] = static_cast<int>(k);
   }
   if (!with_gripper) return;
   geom_entity_[static_cast<std::size_t>(mj_name2id(m_, mjOBJ_GEOM, "palm"))] = kPalm;
@@ -538,12 +572,13 @@ void Scene::relax(const PhysicsConfig& c, const std::vector<bool>& damped) {
 }
 
 double Scene::hull_volume(int k) const {
-  const std::string name = "stone" + std::to_string(k);
-  double volume = 0.0;
-  for (const auto& [a, b, c] : hull_triangles(m_, mj_name2id(m_, mjOBJ_GEOM, name.c_str()), Vector3d::Zero())) {
-    volume += a.dot(b.cross(c)) / 6.0;
+  double total = 0.0;
+  for (int g : stone_geoms(m_, static_cast<std::size_t>(k))) {
+    double volume = 0.0;
+    for (const auto& [a, b, c] : hull_triangles(m_, g, Vector3d::Zero())) volume += a.dot(b.cross(c)) / 6.0;
+    total += std::abs(volume);
   }
-  return std::abs(volume);
+  return total;
 }
 
 Scene::~Scene() {

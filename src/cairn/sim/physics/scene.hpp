@@ -56,7 +56,7 @@ class Scene {
   [[nodiscard]] double time() const { return d_->time; }
   [[nodiscard]] int num_stones() const { return static_cast<int>(stone_body_.size()); }
   [[nodiscard]] bool is_free(int k) const { return stone_qvel_[static_cast<std::size_t>(k)] >= 0; }
-  /// Volume [m^3] of the convex hull MuJoCo collides for stone k (its mesh as MuJoCo sees it).
+  /// Volume [m^3] of the convex hulls MuJoCo collides for stone k (its parts as MuJoCo sees them).
   [[nodiscard]] double hull_volume(int k) const;
 
   /// T_world_stone of stone k relative to its placement in the Site (identity = unmoved).
