@@ -393,9 +393,11 @@ double convex_hull_volume(std::span<const Vector3d> points) {
 }
 
 double mesh_volume(std::span<const Vector3d> v, std::span<const Triangle> t) {
-  double six_v = 0.0;
-  for (const Triangle& tri : t) six_v += v[tri[0]].dot(v[tri[1]].cross(v[tri[2]]));
-  return six_v / 6.0;
+  if (v.empty()) return 0.0;
+  const Vector3d ref = v.front();  // a local reference point limits cancellation
+  double six_volume = 0.0;
+  for (const Triangle& tri : t) six_volume += (v[tri[0]] - ref).dot((v[tri[1]] - ref).cross(v[tri[2]] - ref));
+  return six_volume / 6.0;
 }
 
 std::vector<Vector3d> part_points(const CollisionPart& part, std::span<const Vector3d> v) {

@@ -12,7 +12,6 @@
 #include <map>
 #include <mutex>
 #include <numbers>
-#include <optional>
 #include <sstream>
 #include <string>
 #include <unordered_map>
@@ -763,7 +762,6 @@ Site generate_site(const SiteConfig& config, std::uint64_t seed) {
       real_index[order[i]] = i % real.size();
     }
   }
-  std::vector<std::optional<std::vector<CollisionPart>>> real_parts(real.size());  // decomposed once each
   std::vector<Footprint> footprints;
   std::vector<SolidMesh> solids;
   const std::vector<bool> flat = flat_flags(c, rng);
@@ -773,9 +771,7 @@ Site generate_site(const SiteConfig& config, std::uint64_t seed) {
     if (use_real[k]) {
       const io::Mesh& unit = real[real_index[k]];
       shape.local = to_raw(unit);
-      std::optional<std::vector<CollisionPart>>& parts = real_parts[real_index[k]];
-      if (!parts) parts = real_stone_parts(c.real_meshes[real_index[k]], shape.local, c.collision);
-      shape.parts = *parts;  // the cuts scale with the stone
+      shape.parts = real_stone_parts(c.real_meshes[real_index[k]], shape.local, c.collision);  // scale with it
       const double scale = std::cbrt(shape.volume);
       for (auto& p : shape.local.v) p *= scale;
       const Eigen::Vector3d size = bounding_box(shape.local.v).sizes();
@@ -890,7 +886,7 @@ io::Mesh make_icosphere(int subdivisions) {
 
 double mesh_volume(const io::Mesh& mesh) {
   const RawMesh s = to_raw(mesh);
-  return volume_moments(s.v, s.t).volume;
+  return mesh_volume(s.v, s.t);
 }
 
 Eigen::Vector3d mesh_centroid(const io::Mesh& mesh) {
