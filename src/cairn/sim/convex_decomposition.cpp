@@ -189,6 +189,7 @@ struct CutMesh {
   std::span<const Vector3d> v;
   std::span<const Triangle> t;
   double eps = 0.0;  // [m] a vertex this close to a cutting plane lies in it
+  std::array<std::uint32_t, 4> span{};  // vertices spanning it: the frame of inner points' weights
 };
 
 /// The parity of the triangles a ray from p along dir crosses (Moller–Trumbore).
@@ -237,11 +238,11 @@ std::array<std::uint32_t, 4> spanning_vertices(std::span<const Vector3d> v) {
 
 /// Where three of the region's planes meet inside the solid: corners of the piece that lie on
 /// no triangle.
-std::vector<MeshPoint> inner_corners(const HalfspaceRegion& r, std::span<const Vector3d> v,
-                                     std::span<const Triangle> t, double eps) {
+std::vector<MeshPoint> inner_corners(const HalfspaceRegion& r, const CutMesh& m) {
   std::vector<MeshPoint> out;
   if (r.planes.size() < 3) return out;
-  const std::array<std::uint32_t, 4> s = spanning_vertices(v);
+  const std::span<const Vector3d> v = m.v;
+  const std::array<std::uint32_t, 4>& s = m.span;
   Eigen::Matrix3d frame;
   frame << v[s[1]] - v[s[0]], v[s[2]] - v[s[0]], v[s[3]] - v[s[0]];
   const Eigen::PartialPivLU<Eigen::Matrix3d> to_frame(frame);
@@ -253,9 +254,9 @@ std::vector<MeshPoint> inner_corners(const HalfspaceRegion& r, std::span<const V
         if (std::abs(A.determinant()) < 1e-9) continue;  // parallel planes meet nowhere
         const Vector3d x = A.partialPivLu().solve(Vector3d(r.planes[i].w(), r.planes[j].w(), r.planes[k].w()));
         const bool in_region = std::all_of(r.planes.begin(), r.planes.end(), [&](const Eigen::Vector4d& h) {
-          return h.head<3>().dot(x) <= h.w() + eps;
+          return h.head<3>().dot(x) <= h.w() + m.eps;
         });
-        if (!in_region || !inside_solid(x, v, t)) continue;
+        if (!in_region || !inside_solid(x, v, m.t)) continue;
         const Vector3d l = to_frame.solve(x - v[s[0]]);
         out.push_back({s, {1.0 - l.sum(), l.x(), l.y(), l.z()}});
       }
@@ -269,13 +270,13 @@ std::vector<MeshPoint> inner_corners(const HalfspaceRegion& r, std::span<const V
 struct CutPiece {
   HalfspaceRegion region;
   std::vector<std::uint32_t> surface, inside;
+  std::vector<MeshPoint> corners;  // where three of its planes meet inside the solid
   double search_hull = 0.0, hull = 0.0, volume = 0.0;
   CollisionPart part;
   bool final = false;
   [[nodiscard]] double concavity() const { return hull - volume; }
   void make_exact(const CutMesh& m) {
     part = exact_part(region, m.v, m.t, m.eps);
-    const std::vector<MeshPoint> corners = inner_corners(region, m.v, m.t, m.eps);
     part.insert(part.end(), corners.begin(), corners.end());
     hull = convex_hull_volume(part_points(part, m.v));
   }
@@ -293,11 +294,8 @@ double sampled_hull(const std::vector<Vector3d>& pts, const std::vector<std::uin
 CutPiece make_cut_piece(HalfspaceRegion region, std::vector<std::uint32_t> surface, std::vector<std::uint32_t> inside,
                         const SolidSampling& s, const CutMesh& m) {
   CutPiece p{std::move(region), std::move(surface), std::move(inside)};
-  std::vector<Vector3d> corners;
-  for (const MeshPoint& q : inner_corners(p.region, m.v, m.t, m.eps)) {
-    corners.push_back(q.w[0] * m.v[q.i[0]] + q.w[1] * m.v[q.i[1]] + q.w[2] * m.v[q.i[2]] + q.w[3] * m.v[q.i[3]]);
-  }
-  p.search_hull = sampled_hull(s.surface, p.surface, corners);
+  p.corners = inner_corners(p.region, m);
+  p.search_hull = sampled_hull(s.surface, p.surface, part_points(p.corners, m.v));
   p.volume = static_cast<double>(p.inside.size()) * s.cell_volume;
   return p;
 }
@@ -429,7 +427,7 @@ ConvexDecomposition decompose_convex(std::span<const Vector3d> v, std::span<cons
   std::vector<std::uint32_t> all_surface(s.surface.size()), all_inside(s.inside.size());
   std::iota(all_surface.begin(), all_surface.end(), 0U);
   std::iota(all_inside.begin(), all_inside.end(), 0U);
-  const CutMesh mesh{v, t, kPlaneTolerance * box.sizes().maxCoeff()};
+  const CutMesh mesh{v, t, kPlaneTolerance * box.sizes().maxCoeff(), spanning_vertices(v)};
   std::vector<CutPiece> pieces;
   pieces.push_back(make_cut_piece({}, std::move(all_surface), std::move(all_inside), s, mesh));
   pieces.back().hull = out.hull_volume;
