@@ -454,6 +454,27 @@ TEST(SimulatedSweeps, LabelsMatchTheTrueSurfaces) {
   EXPECT_LT(double(terrain_bad) / double(terrain), 0.002);
 }
 
+/// World points of a sweep labelled `stone` (with their times), sweeps starting in [t_from, duration).
+struct TimedPoints {
+  std::vector<Vector3d> points;
+  std::vector<double> times;
+};
+TimedPoints timed_stone_points(const SimulatedWorld& world, const LidarConfig& lidar, int stone, double duration,
+                               double t_from = 0.0) {
+  TimedPoints out;
+  for (const auto& s : sweep_schedule(lidar, duration, 1)) {
+    if (s.t_start < t_from) continue;
+    const Sweep sw = simulate_scheduled_sweep(world, lidar, s, 1);
+    const Eigen::Isometry3d T_cs = sw.sensor == "H" ? world.excavator.T_cabin_H() : world.excavator.T_cabin_V();
+    for (std::size_t p = 0; p < sw.points.size(); ++p) {
+      if (sw.truth[p] != stone) continue;
+      out.points.push_back(world.excavator.T_world_cabin(sw.times[p]) * T_cs * sw.points[p].cast<double>());
+      out.times.push_back(sw.times[p]);
+    }
+  }
+  return out;
+}
+
 /// World points of a sweep labelled `stone`, noise-free sweeps over the first `duration` s.
 std::vector<Vector3d> stone_points(const SimulatedWorld& world, const LidarConfig& lidar, int stone, double duration) {
   std::vector<Vector3d> out;
@@ -503,6 +524,44 @@ TEST(SimulatedSweeps, AGraspedStoneIsSeenWhereThePhysicsLeftIt) {
   std::printf("stone 5 after the grasp: %zu points, %.0f %% more than 3 cm off its old surface\n", after.size(),
               100.0 * fraction);
   EXPECT_GT(fraction, 0.2);
+}
+
+TEST(SimulatedSweeps, ACarriedStoneIsSeenInTheGripperAndBackOnTheGroundAfterRelease) {
+  // Issue #15 item 2: while a grasped stone is carried, the sweeps see the arm with the stone in
+  // the gripper (moving with the swinging cabin), not the stone on the ground; after the
+  // release it is back in the ground's scene. Stone 5 of the exp1 site of seed 1, grasped by
+  // the centred top-down grasp and held from t = 2 s to 4 s.
+  constexpr int kStone = 5;
+  SimulationConfig cfg = scenario_config("exp1", default_real_mesh_dir());
+  cfg.lidar.range_noise = 0.0;
+  cfg.lidar.dropout = 0.0;
+  SimulatedWorld world = make_world(cfg, 1);
+  const test::TriangleSoup on_ground(world.site.stones[kStone].mesh);
+  const GraspPlan plan = centred_antipodal_grasp(world.site.stones[kStone], cfg.gripper, &world.site.terrain, {});
+  hold_stone(world, kStone, plan.T_world_gripper, plan.opening, 2.0, cfg);
+  EXPECT_THROW(hold_stone(world, 0, plan.T_world_gripper, plan.opening, 2.5, cfg), InputError);  // hands full
+  // Where the arm holds it: its mesh moved by held_stone_pose, lifted off the ground.
+  const Eigen::Isometry3d T_held = held_stone_pose(world, 3.0);
+  EXPECT_GT(T_held.translation().norm(), 0.5);
+  const TimedPoints held = timed_stone_points(world, cfg.lidar, kStone, 4.0, 2.0);
+  ASSERT_GT(held.points.size(), 200u);
+  std::size_t on_held = 0, near_old = 0;
+  for (std::size_t i = 0; i < held.points.size(); ++i) {
+    const Vector3d in_site = held_stone_pose(world, held.times[i]).inverse() * held.points[i];
+    on_held += on_ground.distance(in_site) < 0.01;  // on the mesh, carried by the arm
+    near_old += on_ground.distance(held.points[i]) < 0.05;
+  }
+  std::printf("held stone: %zu returns, %zu on its carried mesh, %zu near where it lay\n", held.points.size(), on_held,
+              near_old);
+  EXPECT_GT(double(on_held), 0.99 * double(held.points.size()));
+  EXPECT_EQ(near_old, 0u);
+  const std::size_t released = release_stone(world, 4.0, cfg);
+  EXPECT_EQ(released, std::size_t(kStone));
+  EXPECT_THROW((void)held_stone_pose(world, 4.5), InputError);
+  const TimedPoints back = timed_stone_points(world, cfg.lidar, kStone, 18.0, 16.0);  // in view again
+  ASSERT_GT(back.points.size(), 200u);
+  for (std::size_t i = 0; i < back.points.size(); i += 3) ASSERT_LT(on_ground.distance(back.points[i]), 0.005);
+  EXPECT_THROW(world.excavator.move_arm(3.0, world.excavator.parked()), InputError);  // commands in time order
 }
 
 // ---- run directory ---------------------------------------------------------------------------

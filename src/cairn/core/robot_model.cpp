@@ -1,5 +1,6 @@
 #include "cairn/core/robot_model.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -87,6 +88,30 @@ double Shape::intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d) cons
 }
 
 double Shape::bounding_radius() const { return 0.5 * size.norm(); }
+
+Shape bounding_box_shape(std::string name, const std::vector<Eigen::Vector3d>& points) {
+  if (points.empty()) throw InputError("bounding_box_shape: no points for '" + name + "'");
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) {
+    if (!p.allFinite()) throw InputError("bounding_box_shape: a non-finite point in '" + name + "'");
+    mean += p;
+  }
+  mean /= double(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
+  Eigen::Matrix3d axes = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors();
+  if (axes.determinant() < 0) axes.col(0) = -axes.col(0);  // a rotation
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (const auto& p : points) {
+    const Eigen::Vector3d q = axes.transpose() * (p - mean);
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  Shape s{.kind = Shape::Kind::Box, .name = std::move(name), .T_link_shape = Eigen::Isometry3d::Identity(), .size = hi - lo};
+  s.T_link_shape.linear() = axes;
+  s.T_link_shape.translation() = mean + axes * (0.5 * (lo + hi));
+  return s;
+}
 
 double JointState::get(const std::string& joint, double fallback) const {
   for (std::size_t i = 0; i < names.size(); ++i)

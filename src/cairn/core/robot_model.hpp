@@ -27,6 +27,11 @@ struct Shape {
   [[nodiscard]] double bounding_radius() const;
 };
 
+/// The box around `points` (in a link's frame) along their principal axes: how a held object,
+/// known only as points, becomes a shape the self-filter pads like the links. InputError when
+/// there are no points or one is not finite.
+[[nodiscard]] Shape bounding_box_shape(std::string name, const std::vector<Eigen::Vector3d>& points);
+
 struct Link {
   enum class Joint { Fixed, Revolute, Prismatic };
   std::string name;

@@ -75,11 +75,32 @@ ScanningMachine::ScanningMachine(const sim::SimulationConfig& config, std::uint6
   MapperSetup setup{.robot = ex.model(), .T_cabin_sensor = {{"H", ex.T_cabin_H()}, {"V", ex.T_cabin_V()}}};
   mapper_ = std::make_unique<Mapper>(std::move(setup), mapping);
   mapper_->add_state_estimates(state_.estimate);
-  mapper_->add_joint_states(state_.joints);
+}
+
+void ScanningMachine::feed_joints(double t_to) {
+  // The encoder noise was drawn with the state estimate; the arm is read as commanded by now (a
+  // grasp moves it after the state estimate was simulated).
+  const double dt = 1.0 / sim_.state.rate;
+  for (; next_joints_ < state_.joints.size() && state_.joints[next_joints_].time <= t_to + 2.0 * dt; ++next_joints_) {
+    const JointState& drawn = state_.joints[next_joints_];
+    const JointState& was = state_.joints_truth[next_joints_];
+    JointState truth = world_.excavator.joints_at(drawn.time);
+    JointState measured = truth;
+    for (std::size_t j = 0; j < measured.names.size(); ++j) {
+      const std::string& name = measured.names[j];
+      const double before = was.get(name);  // unchanged joints keep their reading bit for bit
+      measured.positions[j] = measured.positions[j] == before ? drawn.get(name)
+                                                              : measured.positions[j] + (drawn.get(name) - before);
+    }
+    mapper_->add_joint_state(measured);
+    state_.joints_truth[next_joints_] = std::move(truth);
+    state_.joints[next_joints_] = std::move(measured);
+  }
 }
 
 void ScanningMachine::scan(double t_from, double t_to) {
   const double period = 1.0 / sim_.lidar.rate;
+  feed_joints(t_to);
   while (next_ < schedule_.size() && schedule_[next_].t_start < t_from) ++next_;  // busy carrying
   for (; next_ < schedule_.size() && schedule_[next_].t_start + period <= t_to; ++next_) {
     const sim::Sweep sweep = sim::simulate_scheduled_sweep(world_, sim_.lidar, schedule_[next_], seed_);

@@ -51,7 +51,8 @@ class ScanningMachine {
  public:
   ScanningMachine(const sim::SimulationConfig& config, std::uint64_t seed, double duration, const MappingConfig& mapping);
   /// Feeds the sweeps that start in [t_from, t_to) and end by t_to (earlier ones are skipped: the
-  /// machine was busy).
+  /// machine was busy), and the joint states up to t_to: the encoders read the arm as it was
+  /// commanded by then (sim::hold_stone, sim::release_stone), with their noise.
   void scan(double t_from, double t_to);
   /// Estimate frame -> world at time t: where the machine's own state estimate puts what it
   /// commands (the map frame is the estimate's).
@@ -73,6 +74,8 @@ class ScanningMachine {
   sim::StateEstimate state_;
   std::vector<sim::SweepSchedule> schedule_;
   std::size_t next_ = 0;
+  std::size_t next_joints_ = 0;  // the next state_.joints sample to feed (fed up to a scan's end)
+  void feed_joints(double t_to);
   std::unique_ptr<Mapper> mapper_;
   Vec3d base_ = Vec3d::Zero();
   double now_ = 0.0;

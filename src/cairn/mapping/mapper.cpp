@@ -67,6 +67,29 @@ void Mapper::add_joint_states(const std::vector<JointState>& states) {
   for (const JointState& q : states) add_joint_state(q);
 }
 
+void Mapper::attach(const std::string& link, const Shape& shape, double t) {
+  const int l = setup_.robot.link_index(link);
+  if (l < 0) throw InputError("mapping: cannot attach '" + shape.name + "' to unknown link '" + link + "'");
+  if (!std::isfinite(t)) throw InputError("mapping: attach at a non-finite time");
+  attached_.push_back({.link = std::size_t(l), .shape = shape, .t_from = t, .t_to = INFINITY});
+}
+
+void Mapper::detach(double t) {
+  if (!std::isfinite(t)) throw InputError("mapping: detach at a non-finite time");
+  for (Attachment& a : attached_) a.t_to = std::min(a.t_to, t);
+}
+
+const RobotModel& Mapper::robot_during(double t0, double t1, RobotModel& buffer) const {
+  bool any = false;
+  for (const Attachment& a : attached_) {
+    if (a.t_from > t1 || a.t_to < t0) continue;
+    if (!any) buffer = setup_.robot;
+    any = true;
+    buffer.links[a.link].shapes.push_back(a.shape);
+  }
+  return any ? buffer : setup_.robot;
+}
+
 Eigen::Isometry3d Mapper::T_world_cabin_estimate(double t) const { return interpolate_pose(state_, t); }
 
 void Mapper::add_sweep(const std::string& sensor, const PointCloud& cloud, double t_start, double t_end) {
@@ -98,7 +121,8 @@ void Mapper::add_sweep(const std::string& sensor, const PointCloud& cloud, doubl
   Pending p{.cloud = cloud, .keep = {}, .t_start = t_start, .t_end = t_end};
   if (config_.self_filter.enabled && joints_.empty())
     throw InputError("mapping: no joint states for the self-filter (disable mapping.self_filter.enabled?)");
-  p.keep = self_filter(cloud, setup_.robot, joints_, setup_.T_cabin_sensor.at(sensor), config_.self_filter,
+  RobotModel holding;
+  p.keep = self_filter(cloud, robot_during(t_start, t_end, holding), joints_, setup_.T_cabin_sensor.at(sensor), config_.self_filter,
                        0.5 * (t_start + t_end));
   stats_.points_self_filtered += cloud.size() - p.keep.size();
   timings_.add("self_filter", sw.lap_ms());

@@ -75,6 +75,15 @@ class Mapper {
   /// are replayed moved with the node that was newest when they were made.
   void reoptimize();
 
+  // ---- what the robot holds (Sec. 4.5) --------------------------------------------------------
+  /// From time t on, `shape` is fixed to the robot's link `link` (a grasped object, in the
+  /// gripper frame): the self-filter removes the points inside it, padded like the links, until
+  /// detach. Sec. 4.5: "the self-filter ... will prevent the object from being remapped as long
+  /// as it lies inside the gripper". InputError for an unknown link or a non-finite time.
+  void attach(const std::string& link, const Shape& shape, double t);
+  /// Ends every attachment at time t (the object released).
+  void detach(double t);
+
   // ---- outputs ------------------------------------------------------------------------------
   [[nodiscard]] PointCloud map() const {
     background_->wait();  // the last node's map update
@@ -162,6 +171,14 @@ class Mapper {
   Eigen::Isometry3d T_cabin_H_ = Eigen::Isometry3d::Identity();
   std::vector<StampedPose> state_;
   std::vector<JointState> joints_;
+  struct Attachment {
+    std::size_t link = 0;
+    Shape shape;
+    double t_from = 0, t_to = 0;
+  };
+  std::vector<Attachment> attached_;
+  /// The robot as the self-filter sees it over [t0, t1]: with the shapes attached then.
+  [[nodiscard]] const RobotModel& robot_during(double t0, double t1, RobotModel& buffer) const;
   std::optional<Pending> pending_h_, pending_v_;
   double last_sweep_start_[2] = {-1e300, -1e300};
   std::vector<Node> nodes_;

@@ -72,7 +72,7 @@ RobotModel make_excavator_model(const GripperConfig& g) {
   tilt.shapes.push_back(rotator);
   m.links.push_back(std::move(tilt));
   // Gripper frame G: origin at the palm's front face, x = approach; the jaws pivot on it.
-  Link gripper{.name = "gripper", .parent = 4, .joint = Link::Joint::Revolute, .joint_name = joints::kGripperRoll,
+  Link gripper{.name = kGripperLink, .parent = 4, .joint = Link::Joint::Revolute, .joint_name = joints::kGripperRoll,
                .T_parent_joint = pure_translation(kRotatorLength + g.palm_depth, 0, 0), .axis = Eigen::Vector3d::UnitX()};
   gripper.shapes.push_back(part_shape(palm_part(g)));
   m.links.push_back(std::move(gripper));

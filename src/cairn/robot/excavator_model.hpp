@@ -17,6 +17,10 @@ inline const std::string kCabinYaw = "cabin_yaw", kBoom = "boom", kStick = "stic
                          kJawLeft = "jaw_left", kJawRight = "jaw_right";
 }
 
+/// The link whose frame is the gripper frame G (robot/gripper.hpp): what the gripper holds moves
+/// with it.
+inline const std::string kGripperLink = "gripper";
+
 /// The excavator's kinematic tree and collision shapes (base with chassis and legs, cabin with
 /// counterweight, boom, stick, rotator, gripper palm and jaws). Joint axes: cabin_yaw about base z;
 /// boom, stick and gripper_pitch about -y (positive raises); gripper_roll about the approach x;

@@ -1,16 +1,15 @@
 #include "cairn/sim/excavator.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <numbers>
 
+#include "cairn/core/error.hpp"
 #include "cairn/core/transform.hpp"
 #include "cairn/core/units.hpp"
 
 namespace cairn::sim {
-
-namespace {
-
-}  // namespace
 
 Excavator::Excavator(const ExcavatorConfig& config, const GripperConfig& gripper, const Terrain& terrain)
     : config_(config), gripper_(gripper), model_((validate(gripper), make_excavator_model(gripper))) {
@@ -20,16 +19,40 @@ Excavator::Excavator(const ExcavatorConfig& config, const GripperConfig& gripper
 }
 
 JointState Excavator::joints_at(double t) const {
-  const auto& c = config_;
+  const ArmPose a = arm_at(t);
   JointState q;
   q.time = t;
   q.set(joints::kCabinYaw, cabin_yaw(t));
-  q.set(joints::kBoom, c.boom_deg * kDeg);
-  q.set(joints::kStick, c.stick_deg * kDeg);
-  q.set(joints::kGripperPitch, c.gripper_pitch_deg * kDeg);
-  q.set(joints::kGripperRoll, c.gripper_roll_deg * kDeg);
-  set_jaw_opening(q, gripper_, c.gripper_opening);
+  q.set(joints::kBoom, a.boom_deg * kDeg);
+  q.set(joints::kStick, a.stick_deg * kDeg);
+  q.set(joints::kGripperPitch, a.gripper_pitch_deg * kDeg);
+  q.set(joints::kGripperRoll, a.gripper_roll_deg * kDeg);
+  set_jaw_opening(q, gripper_, a.gripper_opening);
   return q;
+}
+
+ArmPose Excavator::parked() const {
+  const auto& c = config_;
+  return {.boom_deg = c.boom_deg, .stick_deg = c.stick_deg, .gripper_pitch_deg = c.gripper_pitch_deg,
+          .gripper_roll_deg = c.gripper_roll_deg, .gripper_opening = c.gripper_opening};
+}
+
+ArmPose Excavator::arm_at(double t) const {
+  // The latest command at or before t (commands are sorted by time).
+  const auto after = std::upper_bound(arm_commands_.begin(), arm_commands_.end(), t,
+                                      [](double time, const auto& cmd) { return time < cmd.first; });
+  return after == arm_commands_.begin() ? parked() : std::prev(after)->second;
+}
+
+void Excavator::move_arm(double t, const ArmPose& pose) {
+  const bool finite = std::isfinite(t) && std::isfinite(pose.boom_deg) && std::isfinite(pose.stick_deg) &&
+                      std::isfinite(pose.gripper_pitch_deg) && std::isfinite(pose.gripper_roll_deg) &&
+                      std::isfinite(pose.gripper_opening);
+  if (!finite) throw InputError("move_arm: a non-finite time or joint value");
+  if (!arm_commands_.empty() && t < arm_commands_.back().first)
+    throw InputError("move_arm: commanded at t = " + std::to_string(t) + " s, before the previous command (" +
+                     std::to_string(arm_commands_.back().first) + " s)");
+  arm_commands_.emplace_back(t, pose);
 }
 
 Eigen::Isometry3d Excavator::T_world_base(double t) const {

@@ -8,11 +8,30 @@
 // chassis), cabin C (B rotated by the cabin yaw), sensors H and V, gripper G (robot/gripper.hpp). The machine's geometry: robot/excavator_model.hpp.
 #include <Eigen/Geometry>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cairn/robot/excavator_model.hpp"
 #include "cairn/sim/procedural_site.hpp"
 
 namespace cairn::sim {
+
+/// The arm's joints (boom, stick, gripper pitch and roll, jaw opening); the cabin yaw swings on
+/// its own. The parking pose of the mapping phase and the carry pose come from ExcavatorConfig;
+/// Excavator::move_arm commands them.
+struct ArmPose {
+  double boom_deg = 0.0, stick_deg = 0.0, gripper_pitch_deg = 0.0, gripper_roll_deg = 0.0;
+  double gripper_opening = 0.0;  // [m]
+
+  template <class V>
+  void visit(V& v) {
+    v("boom_deg", boom_deg, "[deg] boom joint (raises the boom)");
+    v("stick_deg", stick_deg, "[deg] stick joint");
+    v("gripper_pitch_deg", gripper_pitch_deg, "[deg] gripper pitch");
+    v("gripper_roll_deg", gripper_roll_deg, "[deg] gripper rotator");
+    v("gripper_opening", gripper_opening, "[m] jaw opening");
+  }
+};
 
 struct ExcavatorConfig {
   // Base placement on the site.
@@ -29,6 +48,11 @@ struct ExcavatorConfig {
   // Arm parking pose during mapping [deg] (joint axes: see make_excavator_model).
   double boom_deg = 52.0, stick_deg = -132.0, gripper_pitch_deg = -10.0, gripper_roll_deg = 0.0;
   double gripper_opening = 0.8;  // [m]
+  /// Arm pose while a grasped stone is carried (the cabin keeps swinging, so the LiDARs see the
+  /// arm with the stone): boom up, stick in, gripper pointing down, its palm ~2.5 m above the
+  /// ground, 0.25 m above the parking pose (the opening is the grasp's, set when it closes).
+  ArmPose carry{.boom_deg = 55.0, .stick_deg = -125.0, .gripper_pitch_deg = -20.0, .gripper_roll_deg = 0.0,
+                .gripper_opening = 0.0};
   // LiDAR mounts on the cabin roof's front edge, in the cabin frame [m].
   double lidar_x = 0.95, lidar_z = 2.5;  // brackets 0.3 m above the roof (2.2 m)
   double lidar_h_y = 1.0, lidar_v_y = -1.2;  // V just outside the cab side (1.1 m)
@@ -49,6 +73,7 @@ struct ExcavatorConfig {
     v("gripper_pitch_deg", gripper_pitch_deg, "[deg] gripper pitch in the parking pose");
     v("gripper_roll_deg", gripper_roll_deg, "[deg] gripper rotator in the parking pose");
     v("gripper_opening", gripper_opening, "[m] jaw opening in the parking pose");
+    v("carry", carry, "arm pose while a grasped stone is carried");
     v("lidar_x", lidar_x, "[m] LiDAR mounts: x in the cabin frame");
     v("lidar_z", lidar_z, "[m] LiDAR mounts: z in the cabin frame");
     v("lidar_h_y", lidar_h_y, "[m] horizontal LiDAR: y in the cabin frame");
@@ -65,8 +90,16 @@ class Excavator {
   [[nodiscard]] const ExcavatorConfig& config() const { return config_; }
   [[nodiscard]] const GripperConfig& gripper() const { return gripper_; }
 
-  /// True joint state at time t (cabin swing, arm parked).
+  /// True joint state at time t (cabin swing; the arm as arm_at(t)).
   [[nodiscard]] JointState joints_at(double t) const;
+  /// The parking pose of the config (the arm during mapping).
+  [[nodiscard]] ArmPose parked() const;
+  /// The arm's pose at time t: the parking pose until the first move_arm, then the latest pose
+  /// commanded at or before t (the arm moves between them faster than the sweeps resolve).
+  [[nodiscard]] ArmPose arm_at(double t) const;
+  /// From time t on the arm holds `pose`. Commands come in time order: InputError for a time
+  /// before the last command's or a non-finite value.
+  void move_arm(double t, const ArmPose& pose);
   /// True cabin yaw joint [rad] at time t.
   [[nodiscard]] double cabin_yaw(double t) const;
   /// True base pose (levelled, with the cabin vibration) at time t.
@@ -84,6 +117,7 @@ class Excavator {
   ExcavatorConfig config_;
   GripperConfig gripper_;
   RobotModel model_;
+  std::vector<std::pair<double, ArmPose>> arm_commands_;  // (from time, pose), by time
   Eigen::Isometry3d T_world_base0_ = Eigen::Isometry3d::Identity();
 };
 

@@ -117,11 +117,16 @@ Sweep simulate_sweep(const RayScene& world, const LidarMotion& motion, const Lid
     bool valid = false;
   };
   std::vector<Return> returns(static_cast<std::size_t>(cycles) * kLasers);
+  const bool held = motion.held != nullptr;
+  if (held && (motion.robot == nullptr || !motion.link_poses || motion.held_link < 0 ||
+               std::size_t(motion.held_link) >= motion.robot->links.size()))
+    throw ConfigError("simulate_sweep: a held mesh needs the robot, its link poses and a valid link");
   // Robot shapes move with the cabin, so they are posed relative to the sensor; that relative
   // pose changes only with the arm joints (and, for the base, the cabin yaw), slowly enough to be
   // evaluated once per block of kCyclesPerShapeUpdate firing cycles (< 1 ms).
   tbb::parallel_for(tbb::blocked_range<int>(0, cycles, kCyclesPerShapeUpdate), [&](const tbb::blocked_range<int>& range) {
     std::vector<ShapePose> shapes;
+    Eigen::Isometry3d T_held_sensor = Eigen::Isometry3d::Identity();  // sensor -> held link
     if (motion.robot != nullptr && motion.link_poses) {
       const double t = t_start + range.begin() * cycle_time;
       const Eigen::Isometry3d T_sensor_world = motion.T_world_sensor(t).inverse();
@@ -131,6 +136,7 @@ Sweep simulate_sweep(const RayScene& world, const LidarMotion& motion, const Lid
           shapes.push_back(pose_shape(s, T_sensor_world * links[l] * s.T_link_shape));
         }
       }
+      if (held) T_held_sensor = (T_sensor_world * links[std::size_t(motion.held_link)]).inverse();
     }
     std::vector<const ShapePose*> facing;  // the shapes the cycle's rays can reach
     for (int c = range.begin(); c != range.end(); ++c) {
@@ -152,6 +158,16 @@ Sweep simulate_sweep(const RayScene& world, const LidarMotion& motion, const Lid
         double range_hit = hit.hit() ? hit.t : std::numeric_limits<double>::infinity();
         std::int32_t label = hit.label;
         double cos_incidence = hit.hit() ? std::abs(hit.normal.cast<double>().dot(d)) : 1.0;
+        if (held) {  // the held mesh in its link's frame: the ray moved there
+          const Eigen::Vector3d o_h = T_held_sensor.translation(), d_h = T_held_sensor.linear() * d_sensor;
+          const RayHit h = motion.held->intersect(Ray{.origin = o_h.cast<float>(), .direction = d_h.cast<float>(),
+                                                      .t_near = ray.t_near, .t_far = ray.t_far});
+          if (h.hit() && h.t < range_hit) {
+            range_hit = h.t;
+            label = h.label;
+            cos_incidence = std::abs(h.normal.cast<double>().dot(d_h));
+          }
+        }
         for (const ShapePose* sp : facing) {
           // Sensor frame: the ray starts at the origin. Sphere rejection before the exact test.
           const double along = sp->centre.dot(d_sensor);

@@ -62,11 +62,15 @@ struct Sweep {
 };
 
 /// What moves during a sweep, as functions of time: the sensor pose in the world and the robot's
-/// own shapes (poses in the world of every link, matching robot.links).
+/// own shapes (poses in the world of every link, matching robot.links), and what the robot holds.
 struct LidarMotion {
   std::function<Eigen::Isometry3d(double)> T_world_sensor;
   const RobotModel* robot = nullptr;  // optional: self-occlusion by the robot's links
   std::function<std::vector<Eigen::Isometry3d>(double)> link_poses;
+  /// Optional: meshes fixed to link `held_link` (a stone in the gripper), in that link's frame,
+  /// moving with it; their hits keep the scene's labels. Needs robot and link_poses.
+  const RayScene* held = nullptr;
+  int held_link = -1;
 };
 
 /// Direction of laser l at azimuth `azimuth_rad` in the sensor frame (unit vector).

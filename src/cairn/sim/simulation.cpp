@@ -160,6 +160,41 @@ SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed) {
   return SimulatedWorld{std::move(site), std::move(excavator), std::move(scene)};
 }
 
+void hold_stone(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_world_G_grasp, double opening,
+                double t, const SimulationConfig& config) {
+  if (world.held) throw InputError("hold_stone: the gripper already holds stone " + std::to_string(world.held->stone));
+  if (k >= world.site.stones.size()) throw InputError("hold_stone: no stone " + std::to_string(k));
+  if (!T_world_G_grasp.matrix().allFinite()) throw InputError("hold_stone: the grasp pose is not finite");
+  ArmPose carry = config.excavator.carry;
+  carry.gripper_opening = opening;
+  world.excavator.move_arm(t, carry);
+  const HeldStone held{.stone = k, .T_G_world = T_world_G_grasp.inverse()};
+  io::Mesh mesh = world.site.stones[k].mesh;
+  transform_cloud(mesh.vertices, held.T_G_world);
+  auto scene = std::make_unique<RayScene>();
+  scene->add_mesh(mesh, static_cast<std::int32_t>(k));
+  scene->commit();
+  world.scene = make_world_scene(world.site, config.terrain_mesh_spacing, static_cast<std::int64_t>(k));
+  world.held = held;
+  world.held_scene = std::move(scene);
+}
+
+Eigen::Isometry3d held_stone_pose(const SimulatedWorld& world, double t) {
+  if (!world.held) throw InputError("held_stone_pose: the gripper holds no stone");
+  const int g = world.excavator.model().link_index(kGripperLink);
+  return world.excavator.link_poses(t)[std::size_t(g)] * world.held->T_G_world;
+}
+
+std::size_t release_stone(SimulatedWorld& world, double t, const SimulationConfig& config) {
+  if (!world.held) throw InputError("release_stone: the gripper holds no stone");
+  world.excavator.move_arm(t, world.excavator.parked());
+  const std::size_t k = world.held->stone;
+  world.held.reset();
+  world.held_scene.reset();
+  world.scene = make_world_scene(world.site, config.terrain_mesh_spacing);
+  return k;
+}
+
 GraspTrialResult execute_grasp(SimulatedWorld& world, const GraspPlan& plan, const SimulationConfig& config) {
   GraspTrialResult r = run_grasp_trial(world.site, plan, config.gripper, config.physics);
   apply_stone_poses(world.site, r.stone_poses);
@@ -217,6 +252,10 @@ Sweep simulate_scheduled_sweep(const SimulatedWorld& world, const LidarConfig& l
   motion.T_world_sensor = [&ex, T_cabin_sensor](double t) { return ex.T_world_cabin(t) * T_cabin_sensor; };
   motion.robot = &ex.model();
   motion.link_poses = [&ex](double t) { return ex.link_poses(t); };
+  if (world.held) {
+    motion.held = world.held_scene.get();
+    motion.held_link = ex.model().link_index(kGripperLink);
+  }
   return simulate_sweep(world.scene, motion, lidar, s.sensor, s.index, s.t_start, seed);
 }
 

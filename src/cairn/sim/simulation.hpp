@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -98,13 +100,40 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
 /// `settle` when given). Deterministic for a seed.
 Site make_site(const SimulationConfig& config, std::uint64_t seed, SiteSettleResult* settle = nullptr);
 
-/// Everything the simulator knows at time zero, for tests and other stages (no files).
+/// A stone in the gripper: its site mesh (world coordinates, where it lay when grasped) mapped
+/// into the gripper frame G by T_G_world, so it moves with the arm.
+struct HeldStone {
+  std::size_t stone = 0;
+  Eigen::Isometry3d T_G_world = Eigen::Isometry3d::Identity();
+};
+
+/// Everything the simulator knows, for tests and other stages (no files): the site (stones where
+/// they lie), the machine (its arm commands over time), the ray-cast scene of the ground and the
+/// stones on it, and the stone the gripper holds, if any (ray-cast with the arm instead).
 struct SimulatedWorld {
   Site site;
   Excavator excavator;
   RayScene scene;
+  std::optional<HeldStone> held;
+  std::unique_ptr<RayScene> held_scene;  // the held stone's mesh in the gripper frame
 };
 SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed);
+
+/// Stone k taken into the gripper at time t (issue #15 item 2: the sweeps see the arm with the
+/// stone while it is carried). From t on the arm holds config.excavator.carry with the jaws at
+/// `opening`, and the stone stays fixed in the gripper frame where the grasp left it:
+/// T_world_G_grasp is the true gripper pose when the jaws closed on the stone as it lies in the
+/// site. The stone leaves the ground's ray-cast scene. Throws InputError when a stone is already
+/// held, k is out of range or the pose is not finite, and as Excavator::move_arm.
+void hold_stone(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_world_G_grasp, double opening,
+                double t, const SimulationConfig& config);
+/// World pose at time t of the held stone's site mesh (vertex v lies at T * v); InputError when
+/// nothing is held.
+Eigen::Isometry3d held_stone_pose(const SimulatedWorld& world, double t);
+/// The held stone let go at time t: the arm back in its parking pose from t, the stone back in
+/// the ground's scene where the site has it (put it down with carry_and_release or
+/// execute_grasp). Returns its index; InputError when nothing is held.
+std::size_t release_stone(SimulatedWorld& world, double t, const SimulationConfig& config);
 
 /// Executes a grasp plan in the physics (run_grasp_trial with config.gripper and
 /// config.physics) on the world's site, then moves the world to where the physics left it: the

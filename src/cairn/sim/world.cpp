@@ -69,13 +69,13 @@ io::Mesh terrain_apron(const Terrain& terrain, double spacing, double reach) {
   return mesh;
 }
 
-RayScene make_world_scene(const Site& site, double terrain_spacing) {
+RayScene make_world_scene(const Site& site, double terrain_spacing, std::int64_t left_out) {
   RayScene scene;
   scene.add_mesh(terrain_mesh(site.terrain, terrain_spacing), kLabelTerrain);
   const io::Mesh apron = terrain_apron(site.terrain, kApronSpacing, kApronReach);
   if (!apron.triangles.empty()) scene.add_mesh(apron, kLabelTerrain);
   for (std::size_t k = 0; k < site.stones.size(); ++k) {
-    scene.add_mesh(site.stones[k].mesh, static_cast<std::int32_t>(k));
+    if (static_cast<std::int64_t>(k) != left_out) scene.add_mesh(site.stones[k].mesh, static_cast<std::int32_t>(k));
   }
   scene.commit();
   return scene;

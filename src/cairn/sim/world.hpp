@@ -28,7 +28,8 @@ inline constexpr double kApronSpacing = 1.0;  // [m]
 inline constexpr double kApronReach = 100.0;  // [m] (the VLP-16's maximum range)
 
 /// Terrain (label -1, triangulated at `terrain_spacing`, plus the coarse apron out to the
-/// LiDAR's range) and all stones (label = index), committed.
-RayScene make_world_scene(const Site& site, double terrain_spacing = 0.05);
+/// LiDAR's range) and all stones (label = index) but `left_out` (a stone held by the gripper,
+/// ray-cast with the robot instead; -1: none), committed.
+RayScene make_world_scene(const Site& site, double terrain_spacing = 0.05, std::int64_t left_out = -1);
 
 }  // namespace cairn::sim
