@@ -96,14 +96,15 @@ int run_track(const TrackArgs& a) {
   const eval::ObjectTrackingResult r = eval::run_object_tracking(c, [](const std::string& what, int done, int total) {
     spdlog::info("objects track: {} {}/{}", what, done, total);
   });
-  std::printf("%5s %5s %6s %7s %7s %8s %8s %8s %8s %6s %7s %7s %7s %7s  %s\n", "round", "stone", "object", "moved_m",
-              "settle", "eq3_cm", "eq3_deg", "err_cm", "err_deg", "ghost%", "sph_gnd", "sph_nbr", "vox_gnd", "vox_nbr",
-              "reason");
+  std::printf("%5s %5s %6s %7s %7s %8s %8s %8s %8s %6s %7s %7s %7s %7s %7s  %s\n", "round", "stone", "object",
+              "moved_m", "settle", "eq3_cm", "eq3_deg", "err_cm", "err_deg", "ghost%", "carried", "sph_gnd", "sph_nbr",
+              "vox_gnd", "vox_nbr", "reason");
   for (const eval::MoveRecord& m : r.moves)
-    std::printf("%5d %5d %6lld %7.2f %7.3f %8.2f %8.2f %8.2f %8.2f %6.2f %7zu %7zu %7zu %7zu  %s\n", m.round, m.stone,
-                static_cast<long long>(m.object), m.moved_m, m.settle_m, 100 * m.predicted_error_m,
-                m.predicted_error_deg, 100 * m.error_m, m.error_deg, 100 * m.ghost_share, m.sphere.ground,
-                m.sphere.neighbours, m.object_voxels.ground, m.object_voxels.neighbours, m.reason.c_str());
+    std::printf("%5d %5d %6lld %7.2f %7.3f %8.2f %8.2f %8.2f %8.2f %6.2f %7ld %7zu %7zu %7zu %7zu  %s\n", m.round,
+                m.stone, static_cast<long long>(m.object), m.moved_m, m.settle_m, 100 * m.predicted_error_m,
+                m.predicted_error_deg, 100 * m.error_m, m.error_deg, 100 * m.ghost_share, m.carried_in_map,
+                m.sphere.ground, m.sphere.neighbours, m.object_voxels.ground, m.object_voxels.neighbours,
+                m.reason.c_str());
   for (const eval::RoundRecord& x : r.rounds)
     std::printf("round %d: %d/%d moves within 2 cm and 1 deg (max %.1f cm, %.2f deg); re-segmentation: %zu matched, "
                 "%zu new (%zu on tracked stones, %zu on others, %zu on terrain), %zu vanished, %zu moved; %zu objects\n",

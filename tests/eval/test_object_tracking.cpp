@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "cairn/eval/tracker.hpp"
 #include "cairn/objects/object_db.hpp"
 
 namespace cairn::eval {
@@ -54,9 +55,9 @@ TEST(ObjectTracking, MovedStonesAreFoundAgainAndTheGraspTakesOnlyTheStone) {
   int found = 0;
   for (const MoveRecord& m : r.moves) {
     std::printf("stone %d: moved %.2f m, settled %.2f m %.1f deg; Eq. 3 %.1f cm %.1f deg -> realigned %.1f cm %.2f deg "
-                "(%s); ghosts %.2f %%; ground lost sphere %zu / voxels %zu, neighbours %zu / %zu\n",
+                "(%s); ghosts %.2f %%; carried stone in the map %ld; ground lost sphere %zu / voxels %zu, neighbours %zu / %zu\n",
                 m.stone, m.moved_m, m.settle_m, m.settle_deg, 100 * m.predicted_error_m, m.predicted_error_deg,
-                100 * m.error_m, m.error_deg, m.reason.c_str(), 100 * m.ghost_share, m.sphere.ground,
+                100 * m.error_m, m.error_deg, m.reason.c_str(), 100 * m.ghost_share, m.carried_in_map, m.sphere.ground,
                 m.object_voxels.ground, m.sphere.neighbours, m.object_voxels.neighbours);
     // The grasp's edit: the object's voxels take the stone's points and at most a fifth of the ground
     // the paper's sphere takes (measured 8-49x less), and no neighbour's when the object is one stone
@@ -69,6 +70,8 @@ TEST(ObjectTracking, MovedStonesAreFoundAgainAndTheGraspTakesOnlyTheStone) {
       EXPECT_EQ(m.object_voxels.neighbours, 0u);
     }
     EXPECT_LT(m.ghost_share, 0.01);
+    EXPECT_GE(m.carried_in_map, 0);  // scanned while carrying,
+    EXPECT_LE(m.carried_in_map, 10);  // and the carried stone stayed out of the map
     // Never a silent wrong pose: a stone that settled away from where Eq. 3 put it is reported.
     if (m.predicted_error_m > 0.1) {
       EXPECT_FALSE(m.reason.empty());
@@ -81,6 +84,39 @@ TEST(ObjectTracking, MovedStonesAreFoundAgainAndTheGraspTakesOnlyTheStone) {
     }
   }
   EXPECT_GE(found, 1);
+}
+
+TEST(ObjectTracking, TheCarriedStoneStaysOutOfTheMap) {
+  // Issue #15 item 2, Sec. 4.5: while the machine carries a stone the sweeps see it in the
+  // gripper; attached to the self-filter (the box around the object's database cloud in the
+  // gripper frame) it never enters the map, while the arm's own shapes alone let it in as points
+  // floating in the air. The first tracked stone of the settled exp2 site of seed 2, lifted by a
+  // top-down gripper and scanned for 2 s of the swinging cabin.
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "figures in Release; the path runs under ASan in MovedStonesAreFoundAgain...";
+#endif
+  long floating[2] = {0, 0};
+  for (const bool filter : {true, false}) {
+    ObjectTrackingConfig c;
+    c.scenario = "exp2";
+    c.seed = 2;
+    c.simulation = sim::scenario_config("exp2", sim::default_real_mesh_dir());
+    c.initial_scan = 16.0;  // one swing
+    c.filter_carried = filter;
+    Tracker t(c, {}, c.initial_scan + 4.0);
+    t.initial_scan();
+    t.populate();
+    ASSERT_FALSE(t.tracked().empty());
+    const Tracker::Tracked& tr = t.tracked().front();
+    const HoldPose hold = top_down_hold(*t.db().object(tr.object), t.machine().config().gripper);
+    const double t0 = t.machine().now();
+    floating[filter ? 0 : 1] = t.scan_while_carrying(tr, t.machine().E_state(t0) * hold.T_MG, hold.T_MG, hold.opening,
+                                                     t0, t0 + c.carry_scan);
+  }
+  std::printf("floating map points added while carrying: %ld with the object attached, %ld without\n", floating[0],
+              floating[1]);
+  EXPECT_LE(floating[0], 10);    // measured 1
+  EXPECT_GE(floating[1], 500);   // measured 1717: the test can tell
 }
 
 }  // namespace

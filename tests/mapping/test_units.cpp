@@ -94,7 +94,7 @@ TEST(SelfFilter, RemovesTheCarriedStoneWhileItIsInTheGripper) {
   mapper.attach(kGripperLink, box, 0.0);
   mapper.detach(kReleased);
   std::size_t held = 0, held_kept = 0, held_kept_unattached = 0, scene = 0, scene_kept = 0, scene_lost = 0,
-              filtered = 0;
+              filtered = 0, robot = 0, robot_kept = 0;
   for (const auto& s : sim::sweep_schedule(cfg.lidar, 4.0, 1)) {
     const sim::Sweep sw = sim::simulate_scheduled_sweep(world, cfg.lidar, s, 1);
     PointCloud cloud;
@@ -112,6 +112,7 @@ TEST(SelfFilter, RemovesTheCarriedStoneWhileItIsInTheGripper) {
     if (!attached) continue;
     for (std::size_t i = 0; i < cloud.size(); ++i) {
       if (sw.truth[i] == kStone) held += 1, held_kept += keep[i], held_kept_unattached += keep_unattached[i];
+      if (sw.truth[i] == sim::kLabelRobot) robot += 1, robot_kept += keep[i];
       if (sw.truth[i] == kStone || sw.truth[i] == sim::kLabelRobot) continue;
       scene += 1, scene_kept += keep[i];
       scene_lost += keep_unattached[i] && !keep[i];  // removed by the attachment only
@@ -119,6 +120,7 @@ TEST(SelfFilter, RemovesTheCarriedStoneWhileItIsInTheGripper) {
   }
   std::printf("carried stone: %zu returns, %zu kept with it attached, %zu without; scene %zu, %zu kept, %zu lost "
               "to the attachment\n", held, held_kept, held_kept_unattached, scene, scene_kept, scene_lost);
+  std::printf("robot %zu kept %zu\n", robot, robot_kept);
   ASSERT_GT(held, 200u);
   EXPECT_EQ(held_kept, 0u);                                  // the carried stone never reaches the map
   EXPECT_GT(held_kept_unattached, held / 2);                 // the arm's own shapes alone keep most of it

@@ -196,6 +196,8 @@ class Experiment {
   [[nodiscard]] GraspPlan command(const grasp::GraspPlanning& p, const ObjectRecord& obj, const PointCloud& map,
                                  const Vec2d& target, int stone, double t0, GraspRecord& g) const;
   sim::GraspTrialResult execute(const GraspPlan& plan, int attempt, GraspRecord& g);
+  long scan_carried(const sim::GraspTrialResult& r, const GraspPlan& cmd, const Isometry3d& T_MG_grasp,
+                    const Tracker::Tracked& tr, double t0);
   grasp::GraspPlanning plan(const ObjectRecord& obj, const PointCloud& map, int stone, GraspRecord& g);
   void write_trial(const sim::GraspTrialResult& r, const GraspRecord& g) const;
   void release_and_rescan(int round, int attempt, Tracker::Tracked& tr, const sim::GraspTrialResult& r,
@@ -488,6 +490,19 @@ sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, Gr
   return r;
 }
 
+/// The sweeps while the stone hung in the gripper on its way (issue #15 item 2): from the start
+/// of the trial's move phase for carry_scan seconds, the stone held where the jaws closed on it
+/// (the site's mesh has moved by the trial's outcome since), the object attached to the
+/// self-filter through the commanded grasp. -1 when nothing was carried.
+long Experiment::scan_carried(const sim::GraspTrialResult& r, const GraspPlan& cmd, const Isometry3d& T_MG_grasp,
+                              const Tracker::Tracked& tr, double t0) {
+  const sim::PhaseTiming* moved = find_phase(r, "move");
+  if (moved == nullptr || r.grasped_stone != tr.stone) return -1;
+  const double from = t0 + moved->start, to = std::min(from + c_.tracking.carry_scan, t0 + moved->end);
+  const Isometry3d T_world_G = r.stone_poses[std::size_t(tr.stone)] * cmd.T_world_gripper;
+  return tracker_.scan_while_carrying(tr, T_world_G, T_MG_grasp, r.grasp_opening, from, to);
+}
+
 void Experiment::write_trial(const sim::GraspTrialResult& r, const GraspRecord& g) const {
   std::filesystem::create_directories(c_.trials_dir);
   const std::filesystem::path file = c_.trials_dir / trial_file_name(g);
@@ -567,7 +582,9 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   const PlaceTruth truth = place_truth(m.world().site, tr.stone, E, target);  // scoring only
   // The command from the map without the grasped object (its voxels just removed): a target near
   // the stone's own place would otherwise find the stone for the ground.
-  const sim::GraspTrialResult r = execute(command(p, obj, m.mapper().map(), target, tr.stone, t0, g), attempt, g);
+  const GraspPlan cmd = command(p, obj, m.mapper().map(), target, tr.stone, t0, g);
+  const sim::GraspTrialResult r = execute(cmd, attempt, g);
+  mv.carried_in_map = scan_carried(r, cmd, best.T_map_gripper, tr, t0);
   score_placement(truth, p.cloud.mass_centroid, r, g);
   g.detection = detect_grasp_failure(r, c_.detection);
   release_and_rescan(round, attempt, tr, r, best.T_map_gripper, t0, mv, E, g.detection);
@@ -859,7 +876,8 @@ nlohmann::json to_json(const ExperimentResult& r) {
                                     {"error_m", x.move.error_m}, {"error_deg", x.move.error_deg},
                                     {"found", x.move.found}, {"fitness", x.move.fitness}, {"rmse", x.move.rmse},
                                     {"reason", x.move.reason},
-                                    {"ghost_share", x.move.ghost_share}}}});
+                                    {"ghost_share", x.move.ghost_share},
+                                    {"carried_in_map", x.move.carried_in_map}}}});
   nlohmann::json rounds = nlohmann::json::array();
   for (const ExperimentRound& x : r.rounds) {
     nlohmann::json objects = nlohmann::json::array();

@@ -116,6 +116,8 @@ struct ExperimentConfig {
     v("initial_scan", tracking.initial_scan, "[s] scanning before the database is filled");
     v("rescan", tracking.rescan, "[s] scanning after each release");
     v("carry_time", tracking.carry_time, "[s] expected grasp-to-release time (state estimate at the place)");
+    v("carry_scan", tracking.carry_scan, "[s] scanning while the stone is carried (0: the carry's sweeps skipped)");
+    v("filter_carried", tracking.filter_carried, "attach the carried object to the self-filter");
     v("row_distance", row_distance, "[m] odd rounds: the row of targets this far from the swing axis");
     v("row_distance_even", row_distance_even, "[m] even rounds: the row this far");
     v("row_spacing", row_spacing, "[m] between targets");

@@ -39,7 +39,7 @@ nlohmann::json to_json(const ObjectTrackingResult& r) {
                      {"predicted_error_deg", m.predicted_error_deg}, {"error_m", m.error_m},
                      {"error_deg", m.error_deg}, {"found", m.found}, {"fitness", m.fitness}, {"rmse", m.rmse}, {"reason", m.reason},
                      {"removed_sphere", counts(m.sphere)}, {"removed_object_voxels", counts(m.object_voxels)},
-                     {"ghost_share", m.ghost_share}, {"map_points", m.map_points}});
+                     {"ghost_share", m.ghost_share}, {"carried_in_map", m.carried_in_map}, {"map_points", m.map_points}});
   for (const RoundRecord& x : r.rounds)
     rounds.push_back({{"round", x.round}, {"objects", x.objects}, {"matched", x.matched},
                       {"new_objects", x.new_objects}, {"new_on_tracked", x.new_on_tracked},

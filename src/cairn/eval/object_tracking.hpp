@@ -35,6 +35,13 @@ struct ObjectTrackingConfig {
   double initial_scan = 32.0;     // [s] scanning before the database is populated (two swings)
   double rescan = 16.0;           // [s] scanning after each release (one swing)
   double carry_time = 20.0;       // [s] grasp to release (the physics trials take 15-20 s)
+  /// [s] The sensors keep scanning while the grasped stone is carried (issue #15 item 2): the arm
+  /// holds it in its carry pose, the sweeps see both, and the self-filter must keep the stone out
+  /// of the map (Sec. 4.5). 0: the sweeps of the carry are skipped (the machine was busy).
+  double carry_scan = 2.0;
+  /// The carried object (the box around its database cloud in the gripper frame) is attached to
+  /// the self-filter while carried; false: the arm's own shapes only (the ablation).
+  bool filter_carried = true;
   // Slots: equally spaced fixed locations on the ground (Sec. 6.1) — grids of this spacing within
   // ±slot_max_angle_deg of the heading: odd rounds on the outer ring [slot_split_distance,
   // slot_max_distance] from the swing axis (beyond the stones of exp1/exp2), even rounds on the
@@ -50,6 +57,7 @@ struct ObjectTrackingConfig {
   double turn_deg = 40.0;         // [deg] each move turns the stone about the vertical
   double drop_height = 0.03;      // [m] release height above the ground
   double score_near = 0.05;       // [m] a map point this close to a true surface lies on it
+  double floating_height = 0.5;   // [m] a map point on no true surface this high above the ground floats
   double truth_spacing = 0.04;    // [m] sampling of the true surfaces for scoring
   std::filesystem::path database; // the object database (created); empty: a temporary file
   sim::SimulationConfig simulation;  // settle_in_physics is forced on
@@ -78,6 +86,9 @@ struct MoveRecord {
   std::string reason;                           // realign's report
   RemovalCounts sphere, object_voxels;          // the two grasp edits on the same map
   double ghost_share = 0.0;  // map points where a moved stone was and no longer is / map points
+  /// Floating map points the carry scan added (on no true surface, floating_height above the
+  /// ground): the carried stone remapped (-1: no carry scan).
+  long carried_in_map = -1;
   std::size_t map_points = 0;
 };
 

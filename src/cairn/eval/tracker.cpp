@@ -222,6 +222,66 @@ void Tracker::world_moved(std::span<const Isometry3d> poses) {
   for (Tracked& t : tracked_) t.M = poses[std::size_t(t.stone)] * t.M;
 }
 
+namespace {
+
+/// Map points (E: map -> world) floating: farther than `near` from every true surface and higher
+/// than `height` above the terrain (not the ground's own noise, but what hangs in the air).
+std::size_t floating(const PointCloud& map, const SurfaceTruth& truth, const sim::Terrain& terrain,
+                     const Isometry3d& E, double near, double height) {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Vec3d w = E * map.world(i);
+    n += w.z() > terrain.height(w.x(), w.y()) + height && truth.label_near(w, near) == kLabelNone;
+  }
+  return n;
+}
+
+}  // namespace
+
+HoldPose top_down_hold(const ObjectRecord& obj, const GripperConfig& gripper) {
+  HoldPose h;
+  Eigen::Matrix3d R;
+  R.col(0) = -Vec3d::UnitZ();
+  R.col(1) = Vec3d::UnitY();
+  R.col(2) = R.col(0).cross(R.col(1));
+  double top = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
+  for (std::size_t i = 0; i < obj.cloud.size(); ++i) {
+    const Vec3d p = obj.cloud.world(i);
+    top = std::max(top, p.z());
+    y_lo = std::min(y_lo, p.y());
+    y_hi = std::max(y_hi, p.y());
+  }
+  h.T_MG.linear() = R;
+  h.T_MG.translation() = Vec3d(obj.centroid.x(), obj.centroid.y(), obj.cloud.empty() ? obj.centroid.z() : top);
+  h.opening = std::clamp(y_hi - y_lo, gripper.closed_gap, max_opening(gripper));
+  return h;
+}
+
+long Tracker::scan_while_carrying(const Tracked& tr, const Isometry3d& T_world_G, const Isometry3d& T_MG,
+                                  double opening, double t_from, double t_to) {
+  if (!(cfg_.carry_scan > 0.0) || !(t_to > t_from)) return -1;
+  sim::SimulatedWorld& world = machine_.world();
+  const auto truth_now = truth();  // the stone where the site has it; it is in the air meanwhile
+  const PointCloud before = machine_.mapper().map();
+  const Isometry3d E = truth_now->offset->map_offset(before);
+  const sim::Terrain& ground = world.site.terrain;
+  const std::size_t floating_before = floating(before, *truth_now, ground, E, cfg_.score_near, cfg_.floating_height);
+  sim::hold_stone(world, std::size_t(tr.stone), T_world_G, opening, t_from, machine_.config());
+  if (cfg_.filter_carried) {
+    const ObjectRecord obj = *db_->object(tr.object);
+    std::vector<Vec3d> in_gripper;
+    in_gripper.reserve(obj.cloud.size());
+    const Isometry3d T_GM = T_MG.inverse();
+    for (std::size_t i = 0; i < obj.cloud.size(); ++i) in_gripper.push_back(T_GM * obj.cloud.world(i));
+    if (!in_gripper.empty()) machine_.mapper().attach(kGripperLink, bounding_box_shape("carried_object", in_gripper), t_from);
+  }
+  machine_.scan(t_from, t_to);
+  machine_.mapper().detach(t_to);
+  (void)sim::release_stone(world, t_to, machine_.config());
+  const PointCloud after = machine_.mapper().map();
+  return long(floating(after, *truth_now, ground, E, cfg_.score_near, cfg_.floating_height)) - long(floating_before);
+}
+
 RealignResult Tracker::rescan_and_realign(MoveRecord& m, const Tracked& tr, double t0) {
   machine_.scan(t0, t0 + cfg_.rescan);
   const PointCloud rescanned = machine_.mapper().map();
@@ -260,14 +320,18 @@ bool Tracker::move(int round, Tracked& tr) {
   const Isometry3d T_MG_grasp = yaw_pose(obj.centroid, 0.0);
   (void)commit_grasp(m, tr, T_MG_grasp, map, *before, E);
   // Carry: commanded in the map frame, executed where the state estimate puts the gripper.
-  const double t_release = machine_.now() + cfg_.carry_time;
+  const double t_grasp = machine_.now(), t_release = t_grasp + cfg_.carry_time;
+  // Lifted by a top-down gripper on the object's top, the sensors scanning meanwhile.
+  const HoldPose hold = top_down_hold(obj, machine_.config().gripper);
+  m.carried_in_map = scan_while_carrying(tr, machine_.E_state(t_grasp) * hold.T_MG, hold.T_MG, hold.opening, t_grasp,
+                                         t_grasp + std::min(cfg_.carry_scan, cfg_.carry_time));
   // The stone keeps its seat: tilted with the ground from under it to under the slot, then turned.
   const sim::Terrain& ground = machine_.world().site.terrain;
   const Eigen::Quaterniond tilt = Eigen::Quaterniond::FromTwoVectors(ground.normal(obj.centroid.x(), obj.centroid.y()),
                                                                      ground.normal(slot.x(), slot.y()));
   Isometry3d T_MG_release = yaw_pose(Vec3d(slot.x(), slot.y(), obj.centroid.z()), cfg_.turn_deg / kDegPerRad);
   T_MG_release.linear() = tilt.toRotationMatrix() * T_MG_release.linear();
-  const Isometry3d commanded = machine_.E_state(t_release) * T_MG_release * T_MG_grasp.inverse() * machine_.E_state(machine_.now()).inverse();
+  const Isometry3d commanded = machine_.E_state(t_release) * T_MG_release * T_MG_grasp.inverse() * machine_.E_state(t_grasp).inverse();
   const sim::CarryResult carry = sim::carry_and_release(machine_.world(), std::size_t(tr.stone), commanded, cfg_.drop_height, machine_.config());
   std::vector<Isometry3d> poses = carry.settling;
   poses[std::size_t(tr.stone)] = carry.total;

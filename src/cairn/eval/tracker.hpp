@@ -21,6 +21,14 @@ namespace cairn::eval {
 /// The cumulative transform of an object's history after its creation (world frame).
 [[nodiscard]] Eigen::Isometry3d db_motion(const std::vector<PoseUpdate>& history);
 
+/// The gripper of a rigid carry (the object-tracking experiment's grasps are not planned): top
+/// down on the object's top above its centroid (x down, y across), the jaws at its width.
+struct HoldPose {
+  Eigen::Isometry3d T_MG = Eigen::Isometry3d::Identity();
+  double opening = 0.0;
+};
+[[nodiscard]] HoldPose top_down_hold(const ObjectRecord& obj, const GripperConfig& gripper);
+
 class Tracker {
  public:
   /// A stone and the object that stands for it, with the truth needed to score the object.
@@ -64,6 +72,16 @@ class Tracker {
   /// One rescan from t0, the object relocated and committed, scored, ghosts counted.
   RealignResult rescan_and_realign(MoveRecord& m, const Tracked& tr, double t0);
   [[nodiscard]] double ghost_share(const PointCloud& map, const SurfaceTruth& now, const Eigen::Isometry3d& E) const;
+  /// Scans while the machine carries the grasped stone (issue #15 item 2) over [t_from, t_to):
+  /// the sensors' world holds stone tr.stone in the gripper at T_world_G (the true gripper pose at
+  /// closing, relative to the stone where the site has it now), the mapper's self-filter gets the
+  /// object's database cloud attached to the gripper link through the commanded T_MG (unless
+  /// filter_carried is off); afterwards the stone is back in the world where the site has it and
+  /// the attachment ends. Returns the floating map points the scan added (on no true surface and
+  /// floating_height above the ground: the carried stone remapped), or -1 when carry_scan is 0
+  /// or the window is empty.
+  long scan_while_carrying(const Tracked& tr, const Eigen::Isometry3d& T_world_G, const Eigen::Isometry3d& T_MG,
+                           double opening, double t_from, double t_to);
   /// True when no other stone's bounding box comes within half + slot_clearance of xy.
   [[nodiscard]] bool slot_clear(const Eigen::Vector2d& xy, int stone, double half) const;
 
