@@ -1,6 +1,7 @@
 // cairn simulate: one scenario of the simulator written as a run directory (docs/run-directory.md).
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -23,8 +24,34 @@ struct SimulateArgs {
   std::string real_meshes;
   bool overwrite = false;
   bool no_drone = false;
+  std::vector<std::string> moves;
   CommonOptions common;
 };
+
+/// "T:K:DX:DY[:TURN]" -> StoneMove (time [s], stone, shift [m], turn [deg]).
+sim::StoneMove parse_move(const std::string& text) {
+  std::vector<double> v;
+  std::size_t from = 0;
+  while (from <= text.size()) {
+    const std::size_t to = std::min(text.find(':', from), text.size());
+    const std::string part = text.substr(from, to - from);
+    std::size_t used = 0;
+    double x = NAN;
+    try {
+      x = std::stod(part, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (part.empty() || used != part.size() || !std::isfinite(x))
+      throw InputError("--move '" + text + "': '" + part + "' is not a number (expected T:K:DX:DY[:TURN_DEG])");
+    v.push_back(x);
+    from = to + 1;
+  }
+  if (v.size() < 4 || v.size() > 5) throw InputError("--move '" + text + "': expected T:K:DX:DY[:TURN_DEG]");
+  if (v[1] < 0 || v[1] != std::floor(v[1])) throw InputError("--move '" + text + "': the stone must be an index >= 0");
+  return {.time = v[0], .stone = static_cast<std::size_t>(v[1]), .shift = {v[2], v[3]},
+          .turn_deg = v.size() == 5 ? v[4] : 0.0};
+}
 
 int run_simulate(const SimulateArgs& a) {
   const std::filesystem::path mesh_dir = a.real_meshes.empty() ? sim::default_real_mesh_dir() : std::filesystem::path(a.real_meshes);
@@ -40,6 +67,8 @@ int run_simulate(const SimulateArgs& a) {
   base.simulation = sim::scenario_config(a.scenario, mesh_dir);
   AppConfig cfg = a.common.load(base);
   if (a.no_drone) cfg.simulation.with_drone = false;
+  std::vector<sim::StoneMove> moves;
+  for (const std::string& m : a.moves) moves.push_back(parse_move(m));
   spdlog::info("simulate: scenario {} seed {} for {} s -> {}", a.scenario, a.seed, a.duration, a.out);
   std::size_t last_percent = 101;
   const auto progress = [&](const std::string& stage, std::size_t done, std::size_t total) {
@@ -51,7 +80,8 @@ int run_simulate(const SimulateArgs& a) {
       spdlog::info("simulate: drone survey");
     }
   };
-  const sim::SimulationSummary s = sim::simulate_run(a.scenario, cfg.simulation, a.seed, a.duration, a.out, a.overwrite, progress);
+  const sim::SimulationSummary s = sim::simulate_run(a.scenario, cfg.simulation, a.seed, a.duration, a.out, a.overwrite,
+                                                     progress, moves);
   nlohmann::json out{{"scenario", s.scenario}, {"seed", s.seed}, {"duration", s.duration}, {"out", a.out},
                      {"sweeps", s.sweeps}, {"points", s.points}, {"rays", s.rays},
                      {"drone_points", s.drone_points}, {"drone_images", s.drone_images},
@@ -84,6 +114,9 @@ void add_simulate_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--real-meshes", args->real_meshes, "directory of real scanned stone meshes (PLY)");
   cmd->add_flag("--overwrite", args->overwrite, "replace an existing run directory");
   cmd->add_flag("--no-drone", args->no_drone, "skip the drone survey");
+  cmd->add_option("--move", args->moves,
+                  "T:K:DX:DY[:TURN_DEG] — at T s the machine picks stone K up, carries it for carry_time s and puts "
+                  "it down shifted by (DX, DY) m and turned; repeatable (truth/segments.json)");
   args->common.add_to(*cmd);
   cmd->callback([&run, args] { run = [args] { return run_simulate(*args); }; });
 }

@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -12,6 +14,7 @@
 #include "cairn/core/io/colmap.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/run_dir.hpp"
+#include "cairn/core/transform.hpp"
 #include "cairn/sim/simulation.hpp"
 #include "cairn/sim/world.hpp"
 #include "support/mesh_distance.hpp"
@@ -577,6 +580,85 @@ SimulationConfig small_run_config() {
 std::string file_bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// Joint values at time t, linear between the two neighbouring samples (same joint order).
+JointState joints_between(const std::vector<JointState>& states, double t) {
+  auto after = std::lower_bound(states.begin(), states.end(), t, [](const JointState& q, double x) { return q.time < x; });
+  if (after == states.begin()) return states.front();
+  if (after == states.end()) return states.back();
+  const JointState& a = *std::prev(after);
+  const JointState& b = *after;
+  const double w = (t - a.time) / (b.time - a.time);
+  JointState q = a;
+  for (std::size_t j = 0; j < q.positions.size(); ++j) q.positions[j] = (1 - w) * a.positions[j] + w * b.positions[j];
+  return q;
+}
+
+TEST(RunDirectory, AStoneMovedDuringTheRunIsSeenWhereEachSegmentsTruthPutsIt) {
+  // Issue #15 item 2: a run with several scanning segments. Stone 5 of exp1 seed 1 (in view at
+  // 0.5-2 s and 5.5-7.5 s of the swing) is picked up at 2 s, carried for 1 s and put down 1 m
+  // further and turned 30 deg; truth/segments.json
+  // says where it is in each segment — on the ground, in the gripper (posed from the true joint
+  // states and cabin poses through robot.json), moved — and the stone's LiDAR returns lie there.
+  const fs::path dir = test::temp_dir("sim_moves") / "run";
+  SimulationConfig cfg = small_run_config();
+  cfg.with_drone = false;
+  cfg.with_snapshot = false;
+  cfg.lidar.range_noise = 0.0;
+  cfg.lidar.dropout = 0.0;
+  cfg.carry_time = 1.0;
+  const StoneMove move{.time = 2.0, .stone = 5, .shift = {1.0, 0.0}, .turn_deg = 30.0};
+  EXPECT_THROW(simulate_run("exp1", cfg, 1, 2.5, dir, false, {}, {move}), InputError);  // ends after the run
+  EXPECT_THROW(simulate_run("exp1", cfg, 1, 7.0, dir, true, {}, {move, move}), InputError);  // hands full
+  simulate_run("exp1", cfg, 1, 7.0, dir, true, {}, {move});
+  const io::RunDirectory run = io::open_run_directory(dir);
+  std::ifstream in(dir / "truth" / "segments.json");
+  const nlohmann::json segments = nlohmann::json::parse(in).at("segments");
+  ASSERT_EQ(segments.size(), 3u);
+  const double starts[] = {0.0, 2.0, 3.0}, ends[] = {2.0, 3.0, 7.0};
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_DOUBLE_EQ(segments[i].at("t_start").get<double>(), starts[i]);
+    EXPECT_DOUBLE_EQ(segments[i].at("t_end").get<double>(), ends[i]);
+    EXPECT_EQ(segments[i].at("held").is_null(), i != 1);
+  }
+  const auto matrix = [](const nlohmann::json& j) { return Eigen::Isometry3d(matrix_from_json(j)); };
+  const Eigen::Isometry3d T_G_stone = matrix(segments[1].at("held").at("T_gripper_stone"));
+  const Eigen::Isometry3d T_moved = matrix(segments[2].at("T_world_stone")[5]);
+  EXPECT_TRUE(segments[1].at("T_world_stone")[5].is_null());
+  const test::TriangleSoup mesh(io::read_ply_mesh(dir / "truth" / "stones" / "stone_05.ply"));
+  const auto cabin = io::read_stamped_poses(dir / "truth" / "cabin_poses.tum");
+  const auto joints = io::read_joint_states(dir / "truth" / "joint_states.csv");
+  const int cabin_link = run.robot.link_index("cabin"), gripper = run.robot.link_index(kGripperLink);
+  std::size_t seen[3] = {0, 0, 0}, off[3] = {0, 0, 0}, off_old = 0;
+  for (const io::ScanInfo& scan : run.scans) {
+    const PointCloud cloud = run.read_scan(scan);
+    const std::vector<std::int32_t> truth = run.read_scan_truth(scan);
+    for (std::size_t p = 0; p < cloud.size(); p += 2) {
+      if (truth[p] != 5) continue;
+      const double t = cloud.times[p];
+      const Vector3d world = interpolate_pose(cabin, t) * run.T_cabin_sensor.at(scan.sensor) * cloud.points[p].cast<double>();
+      const std::size_t seg = t < 2.0 ? 0 : t < 3.0 ? 1 : 2;
+      Eigen::Isometry3d T_world_stone = Eigen::Isometry3d::Identity();
+      if (seg == 1) {
+        const auto fk = run.robot.forward_kinematics(joints_between(joints, t));
+        T_world_stone = interpolate_pose(cabin, t) * fk[std::size_t(cabin_link)].inverse() * fk[std::size_t(gripper)] * T_G_stone;
+      } else if (seg == 2) {
+        T_world_stone = T_moved;
+      }
+      ++seen[seg];
+      off[seg] += mesh.distance(T_world_stone.inverse() * world) > 0.01;
+      off_old += seg == 2 && mesh.distance(world) > 0.03;
+    }
+  }
+  std::printf("stone 5 returns on the ground / in the gripper / moved: %zu / %zu / %zu; off their truth by > 1 cm: "
+              "%zu / %zu / %zu; moved ones > 3 cm off the old place: %zu\n", seen[0], seen[1], seen[2], off[0], off[1],
+              off[2], off_old);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_GT(seen[i], 100u) << "segment " << i;
+    EXPECT_LT(off[i], seen[i] / 100 + 1) << "segment " << i;
+  }
+  EXPECT_GT(off_old, seen[2] / 2);
 }
 
 TEST(RunDirectory, WrittenAndReadBackWithOneCall) {

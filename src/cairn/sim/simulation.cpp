@@ -15,6 +15,7 @@
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/io/trajectory.hpp"
 #include "cairn/core/log.hpp"
+#include "cairn/core/units.hpp"
 #include "cairn/sim/world.hpp"
 
 #ifndef CAIRN_DEFAULT_REAL_MESH_DIR
@@ -259,9 +260,9 @@ Sweep simulate_scheduled_sweep(const SimulatedWorld& world, const LidarConfig& l
   return simulate_sweep(world.scene, motion, lidar, s.sensor, s.index, s.t_start, seed);
 }
 
-SimulationSummary simulate_run(const std::string& scenario, const SimulationConfig& config, std::uint64_t seed,
-                               double duration, const fs::path& out, bool overwrite, const Progress& progress) {
-  if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("simulate: duration must be positive");
+namespace {
+
+void prepare_run_directory(const fs::path& out, bool overwrite) {
   if (fs::exists(out) && !fs::is_directory(out)) throw InputError(out.string() + ": exists and is not a directory");
   if (fs::exists(out) && !fs::is_empty(out) && !overwrite) {
     throw InputError(out.string() + ": directory is not empty (use --overwrite to replace it)");
@@ -271,27 +272,225 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
     if (!fs::exists(out / "run.json")) throw InputError(out.string() + ": not a run directory; refusing to overwrite it");
     fs::remove_all(out);
   }
-  validate(config.lidar);  // fail before any file is written
-  Stopwatch total, sw;
-  SimulationSummary summary{.scenario = scenario, .seed = seed, .duration = duration};
-  const SimulatedWorld world = make_world(config, seed);
-  const Excavator& ex = world.excavator;
-  for (const auto* dir : {"scans/H", "scans/V", "state", "drone/sparse", "truth/scans/H", "truth/scans/V", "truth/stones"}) {
-    fs::create_directories(out / dir);
+}
+
+/// The site at t = 0: stone meshes, site.json, the terrain, the dense labelled snapshot.
+void write_site_truth(const fs::path& out, const SimulatedWorld& world, const SimulationConfig& config, std::uint64_t seed) {
+  nlohmann::json stones = nlohmann::json::array();
+  for (std::size_t k = 0; k < world.site.stones.size(); ++k) {
+    const Stone& s = world.site.stones[k];
+    char name[64];
+    std::snprintf(name, sizeof(name), "stones/stone_%02zu.ply", k);
+    io::write_ply_mesh(out / "truth" / name, s.mesh);
+    stones.push_back({{"id", k}, {"volume", s.volume}, {"flat", s.flat}, {"source", s.source},
+                      {"centroid", vec_json(s.centroid)}, {"bbox_min", vec_json(s.bounds.min())},
+                      {"bbox_max", vec_json(s.bounds.max())}, {"mesh", name},
+                      {"T_world_stone", matrix_to_json(Eigen::Matrix4d::Identity())}});
   }
+  io::write_ply_mesh(out / "truth" / "terrain.ply", terrain_mesh(world.site.terrain, config.terrain_mesh_spacing));
+  write_json(out / "truth" / "site.json",
+             {{"stones", stones},
+              {"T_world_base", matrix_to_json(world.excavator.T_world_base(0.0).matrix())},
+              {"labels", {{"terrain", kLabelTerrain}, {"robot", kLabelRobot}, {"stone", "index k >= 0"}}},
+              {"note", "stone meshes are in the world (= map) frame at t = 0; T_world_stone moves them from there "
+                       "(segments.json: after the machine moved stones)"}});
+  if (config.with_snapshot) {
+    const SampledSite snap = sample_site(world.site, config.snapshot, seed);
+    io::write_ply(out / "truth" / "map_snapshot.ply", snap.cloud);
+  }
+}
+
+/// The drone survey of the site at t = 0 (Sec. 4.1): the cloud, the COLMAP model, VINS, truth.
+void write_drone_survey(const fs::path& out, const SimulatedWorld& world, const SimulationConfig& config,
+                        std::uint64_t seed, SimulationSummary& summary) {
+  const DroneSurvey survey = simulate_drone(world.site, world.scene, config.drone, seed);
+  PointCloud cloud = survey.cloud;
+  cloud.labels.clear();  // the truth goes to truth/, not into the input
+  io::write_ply(out / "drone" / "cloud.ply", cloud);
+  io::write_npy_int32(out / "truth" / "drone_labels.npy", survey.truth);
+  io::write_colmap_text(out / "drone" / "sparse", to_colmap_model(survey));
+  io::write_tum_trajectory(out / "drone" / "vins_trajectory.tum", vins_trajectory(survey));
+  nlohmann::json images = nlohmann::json::array();
+  for (const auto& im : survey.images) {
+    images.push_back({{"name", im.name}, {"timestamp", im.timestamp}, {"T_world_cam", matrix_to_json(im.T_world_cam.matrix())}});
+  }
+  write_json(out / "truth" / "drone.json",
+             {{"T_map_drone", matrix_to_json(survey.T_world_sfm.matrix())},
+              {"scale_map_per_sfm_unit", survey.T_world_sfm.scale},
+              {"T_sfm_world", matrix_to_json(survey.T_sfm_world.matrix())},
+              {"T_vins_world", matrix_to_json(survey.T_vins_world.matrix())},
+              {"images", images}});
+  summary.drone_points = survey.cloud.size();
+  summary.drone_images = survey.images.size();
+}
+
+/// The state estimate over [0, duration] (the arm as commanded over the run), the robot model,
+/// the extrinsics.
+void write_machine(const fs::path& out, const Excavator& ex, const SimulationConfig& config, std::uint64_t seed,
+                   double duration) {
   const StateEstimate state = simulate_state_estimation(
       [&ex](double t) { return ex.T_world_cabin(t); }, [&ex](double t) { return ex.joints_at(t); }, ex.model(), 0.0,
       duration, config.state, seed);
-  summary.seconds_site = sw.lap_ms() / 1000.0;
+  io::write_stamped_poses(out / "state" / "cabin_poses.tum", state.estimate);
+  io::write_joint_states(out / "state" / "joint_states.csv", state.joints);
+  io::write_stamped_poses(out / "truth" / "cabin_poses.tum", state.truth);
+  io::write_joint_states(out / "truth" / "joint_states.csv", state.joints_truth);
+  write_json(out / "robot.json", to_json(ex.model()));
+  const Eigen::Isometry3d T_H_V = ex.T_cabin_H().inverse() * ex.T_cabin_V();
+  write_json(out / "extrinsics.json",
+             {{"T_cabin_sensor", {{"H", matrix_to_json(ex.T_cabin_H().matrix())}, {"V", matrix_to_json(ex.T_cabin_V().matrix())}}},
+              {"T_H_V", matrix_to_json(T_H_V.matrix())},
+              {"note", "T_a_b maps points of frame b into frame a; sensors spin about their z axis"}});
+}
 
-  // Sweeps, written as they come.
+/// LiDAR returns in the world (true poses) for the preview picture.
+struct PreviewPoints {
+  PointCloud cloud;
+  std::vector<Rgb> colors;
+};
+
+/// Preview: LiDAR returns (left, coloured by truth) and the drone cloud (right, mapped into the
+/// world by the true similarity), over the same extent.
+void write_preview(const fs::path& out, const SimulatedWorld& world, const PreviewPoints& preview, bool with_drone) {
+  Eigen::AlignedBox3d region;
+  for (const auto& stone : world.site.stones) region.extend(stone.bounds);
+  region.extend(world.excavator.T_world_base(0.0).translation());
+  Aabb box;
+  box.min = (region.min() - Eigen::Vector3d::Constant(kPreviewMargin)).cast<float>();
+  box.max = (region.max() + Eigen::Vector3d::Constant(kPreviewMargin)).cast<float>();
+  box.min.z() = static_cast<float>(region.min().z() - 1.0);
+  box.max.z() = static_cast<float>(region.max().z() + 1.0);
+  Image left = render_top_view(preview.cloud, preview.colors, kPreviewPixelsPerMetre, box);
+  if (with_drone) {
+    PointCloud drone = io::read_cloud(out / "drone" / "cloud.ply").cloud;
+    transform_cloud(drone, read_drone_truth(out));
+    std::vector<Rgb> colors = drone.has_colors() ? drone.colors : std::vector<Rgb>(drone.size(), Rgb{120, 120, 120});
+    left = side_by_side(left, render_top_view(drone, colors, kPreviewPixelsPerMetre, box));
+  }
+  write_png(out / "preview.png", left);
+}
+
+nlohmann::json move_json(const StoneMove& m) {
+  return {{"time", m.time}, {"stone", m.stone}, {"shift", {m.shift.x(), m.shift.y()}}, {"turn_deg", m.turn_deg}};
+}
+
+}  // namespace
+
+void validate_moves(const std::vector<StoneMove>& moves, std::size_t stones, double duration,
+                    const SimulationConfig& config) {
+  if (!(config.carry_time > 0) || !std::isfinite(config.carry_time))
+    throw ConfigError("carry_time: must be positive (got " + std::to_string(config.carry_time) + ")");
+  double free_from = 0.0;  // the gripper is free again from here
+  for (std::size_t i = 0; i < moves.size(); ++i) {
+    const StoneMove& m = moves[i];
+    const std::string name = "move " + std::to_string(i + 1);
+    if (!std::isfinite(m.time) || !m.shift.allFinite() || !std::isfinite(m.turn_deg))
+      throw InputError(name + ": non-finite time, shift or turn");
+    if (m.stone >= stones) throw InputError(name + ": no stone " + std::to_string(m.stone) + " (the site has " + std::to_string(stones) + ")");
+    if (m.time < free_from)
+      throw InputError(name + ": starts at " + std::to_string(m.time) + " s, before the gripper is free (" + std::to_string(free_from) + " s)");
+    free_from = m.time + config.carry_time;
+    if (free_from > duration)
+      throw InputError(name + ": ends at " + std::to_string(free_from) + " s, after the run (" + std::to_string(duration) + " s)");
+  }
+}
+
+MoveScript::MoveScript(std::vector<StoneMove> moves, std::size_t stones) : moves_(std::move(moves)) {
+  segments_.push_back({.t_start = 0.0, .held = -1, .T_gripper_stone = Eigen::Isometry3d::Identity(),
+                       .T_world_stone = std::vector<Eigen::Isometry3d>(stones, Eigen::Isometry3d::Identity())});
+}
+
+double MoveScript::next_event(const SimulationConfig& config) const {
+  if (next_ >= 2 * moves_.size()) return INFINITY;
+  const StoneMove& m = moves_[next_ / 2];
+  return next_ % 2 == 0 ? m.time : m.time + config.carry_time;
+}
+
+void MoveScript::advance(SimulatedWorld& world, double t, const SimulationConfig& config) {
+  for (double e = next_event(config); e <= t; e = next_event(config)) {
+    const StoneMove& m = moves_[next_ / 2];
+    TruthSegment seg = segments_.back();
+    seg.t_start = e;
+    if (next_ % 2 == 0) {  // the gripper takes the stone (the centred top-down grasp) and lifts it
+      const GraspPlan plan = centred_antipodal_grasp(world.site.stones[m.stone], config.gripper, &world.site.terrain, {});
+      hold_stone(world, m.stone, plan.T_world_gripper, plan.opening, e, config);
+      seg.held = static_cast<int>(m.stone);
+      seg.T_gripper_stone = world.held->T_G_world * seg.T_world_stone[m.stone];
+    } else {  // ... and puts it down shifted and turned about the vertical through its centroid
+      const Eigen::Vector3d c = world.site.stones[m.stone].centroid;
+      const Eigen::Isometry3d T_motion = Eigen::Translation3d(c + Eigen::Vector3d(m.shift.x(), m.shift.y(), 0.0)) *
+                                         Eigen::AngleAxisd(m.turn_deg * kDeg, Eigen::Vector3d::UnitZ()) *
+                                         Eigen::Translation3d(-c);
+      (void)release_stone(world, e, config);
+      const CarryResult r = carry_and_release(world, m.stone, T_motion, config.drop_height, config);
+      for (std::size_t j = 0; j < seg.T_world_stone.size(); ++j)
+        seg.T_world_stone[j] = (j == m.stone ? r.total : r.settling[j]) * seg.T_world_stone[j];
+      seg.held = -1;
+      seg.T_gripper_stone = Eigen::Isometry3d::Identity();
+    }
+    segments_.push_back(std::move(seg));
+    ++next_;
+  }
+}
+
+nlohmann::json MoveScript::to_json(double duration) const {
+  nlohmann::json segments = nlohmann::json::array();
+  for (std::size_t i = 0; i < segments_.size(); ++i) {
+    const TruthSegment& s = segments_[i];
+    nlohmann::json poses = nlohmann::json::array();
+    for (std::size_t k = 0; k < s.T_world_stone.size(); ++k) {
+      poses.push_back(static_cast<int>(k) == s.held ? nlohmann::json(nullptr) : matrix_to_json(s.T_world_stone[k].matrix()));
+    }
+    nlohmann::json held = nullptr;
+    if (s.held >= 0) held = {{"stone", s.held}, {"T_gripper_stone", matrix_to_json(s.T_gripper_stone.matrix())}};
+    segments.push_back({{"t_start", s.t_start},
+                        {"t_end", i + 1 < segments_.size() ? segments_[i + 1].t_start : duration},
+                        {"held", held}, {"T_world_stone", poses}});
+  }
+  nlohmann::json moves = nlohmann::json::array();
+  for (const StoneMove& m : moves_) moves.push_back(move_json(m));
+  return {{"segments", segments},
+          {"moves", moves},
+          {"note", "T_world_stone moves truth/stones/stone_kk.ply (the site at t = 0) to where the stone lies in "
+                   "the segment; the held stone (null there) moves with the gripper frame G (robot.json's link "
+                   "'gripper', posed by truth/joint_states.csv and truth/cabin_poses.tum): T_gripper_stone maps "
+                   "its t = 0 mesh into G"}};
+}
+
+SimulationSummary simulate_run(const std::string& scenario, const SimulationConfig& config, std::uint64_t seed,
+                               double duration, const fs::path& out, bool overwrite, const Progress& progress,
+                               const std::vector<StoneMove>& moves) {
+  if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("simulate: duration must be positive");
+  prepare_run_directory(out, overwrite);
+  validate(config.lidar);  // fail before any file is written
+  Stopwatch total, sw;
+  SimulationSummary summary{.scenario = scenario, .seed = seed, .duration = duration};
+  SimulatedWorld world = make_world(config, seed);
+  validate_moves(moves, world.site.stones.size(), duration, config);
+  for (const auto* dir : {"scans/H", "scans/V", "state", "drone/sparse", "truth/scans/H", "truth/scans/V", "truth/stones"}) {
+    fs::create_directories(out / dir);
+  }
+  summary.seconds_site = sw.lap_ms() / 1000.0;
+  // What the sensors see at t = 0: the site's truth and the drone survey (before any move).
+  write_site_truth(out, world, config, seed);
+  double write_ms = sw.lap_ms();
+  if (config.with_drone) {
+    if (progress) progress("drone", 0, 1);
+    write_drone_survey(out, world, config, seed, summary);
+    summary.seconds_drone = sw.lap_ms() / 1000.0;
+    if (progress) progress("drone", 1, 1);
+  }
+
+  // Sweeps, written as they come; the machine moves stones between them.
+  MoveScript script(moves, world.site.stones.size());
   std::vector<io::ScanInfo> index;
-  PointCloud preview;  // a share of the returns in the world frame (true poses), for the picture
-  std::vector<Rgb> preview_colors;
+  PreviewPoints preview;  // a share of the returns in the world frame (true poses), for the picture
+  const Excavator& ex = world.excavator;
   const auto schedule = sweep_schedule(config.lidar, duration, seed);
-  double lidar_ms = 0, write_ms = 0;
+  double lidar_ms = 0;
   for (std::size_t i = 0; i < schedule.size(); ++i) {
     Stopwatch one;
+    script.advance(world, schedule[i].t_start, config);
     const Sweep sweep = simulate_scheduled_sweep(world, config.lidar, schedule[i], seed);
     lidar_ms += one.lap_ms();
     PointCloud cloud;
@@ -312,108 +511,31 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
     const Eigen::Isometry3d T_cabin_sensor = sweep.sensor == "H" ? ex.T_cabin_H() : ex.T_cabin_V();
     for (std::size_t p = 0; p < sweep.points.size(); p += kPreviewStride) {
       const Eigen::Isometry3d T = ex.T_world_cabin(sweep.times[p]) * T_cabin_sensor;
-      preview.points.push_back((T * sweep.points[p].cast<double>()).cast<float>());
-      preview_colors.push_back(truth_color(sweep.truth[p]));
+      preview.cloud.points.push_back((T * sweep.points[p].cast<double>()).cast<float>());
+      preview.colors.push_back(truth_color(sweep.truth[p]));
     }
     summary.points += sweep.points.size();
     summary.rays += sweep.num_rays;
     write_ms += one.lap_ms();
     if (progress) progress("lidar", i + 1, schedule.size());
   }
+  script.advance(world, duration, config);  // moves after the last sweep
   summary.sweeps = schedule.size();
   summary.seconds_lidar = lidar_ms / 1000.0;
-  io::write_scan_index(out / "scans" / "index.csv", index);
   sw.lap_ms();
+  io::write_scan_index(out / "scans" / "index.csv", index);
+  write_machine(out, ex, config, seed, duration);  // the arm as commanded over the whole run
+  write_json(out / "truth" / "segments.json", script.to_json(duration));
+  write_preview(out, world, preview, config.with_drone);
 
-  // State estimates, robot, extrinsics.
-  io::write_stamped_poses(out / "state" / "cabin_poses.tum", state.estimate);
-  io::write_joint_states(out / "state" / "joint_states.csv", state.joints);
-  io::write_stamped_poses(out / "truth" / "cabin_poses.tum", state.truth);
-  io::write_joint_states(out / "truth" / "joint_states.csv", state.joints_truth);
-  write_json(out / "robot.json", to_json(ex.model()));
-  const Eigen::Isometry3d T_H_V = ex.T_cabin_H().inverse() * ex.T_cabin_V();
-  write_json(out / "extrinsics.json",
-             {{"T_cabin_sensor", {{"H", matrix_to_json(ex.T_cabin_H().matrix())}, {"V", matrix_to_json(ex.T_cabin_V().matrix())}}},
-              {"T_H_V", matrix_to_json(T_H_V.matrix())},
-              {"note", "T_a_b maps points of frame b into frame a; sensors spin about their z axis"}});
-
-  // Ground truth of the site.
-  nlohmann::json stones = nlohmann::json::array();
-  for (std::size_t k = 0; k < world.site.stones.size(); ++k) {
-    const Stone& s = world.site.stones[k];
-    char name[64];
-    std::snprintf(name, sizeof(name), "stones/stone_%02zu.ply", k);
-    io::write_ply_mesh(out / "truth" / name, s.mesh);
-    stones.push_back({{"id", k}, {"volume", s.volume}, {"flat", s.flat}, {"source", s.source},
-                      {"centroid", vec_json(s.centroid)}, {"bbox_min", vec_json(s.bounds.min())},
-                      {"bbox_max", vec_json(s.bounds.max())}, {"mesh", name},
-                      {"T_world_stone", matrix_to_json(Eigen::Matrix4d::Identity())}});
-  }
-  io::write_ply_mesh(out / "truth" / "terrain.ply", terrain_mesh(world.site.terrain, config.terrain_mesh_spacing));
-  write_json(out / "truth" / "site.json",
-             {{"stones", stones},
-              {"T_world_base", matrix_to_json(ex.T_world_base(0.0).matrix())},
-              {"labels", {{"terrain", kLabelTerrain}, {"robot", kLabelRobot}, {"stone", "index k >= 0"}}},
-              {"note", "stone meshes are in the world (= map) frame; T_world_stone moves them from there"}});
-  if (config.with_snapshot) {
-    const SampledSite snap = sample_site(world.site, config.snapshot, seed);
-    io::write_ply(out / "truth" / "map_snapshot.ply", snap.cloud);
-  }
-  summary.seconds_write = (write_ms + sw.lap_ms()) / 1000.0;
-
-  // Drone survey (Sec. 4.1).
-  if (config.with_drone) {
-    if (progress) progress("drone", 0, 1);
-    const DroneSurvey survey = simulate_drone(world.site, world.scene, config.drone, seed);
-    PointCloud cloud = survey.cloud;
-    cloud.labels.clear();  // the truth goes to truth/, not into the input
-    io::write_ply(out / "drone" / "cloud.ply", cloud);
-    io::write_npy_int32(out / "truth" / "drone_labels.npy", survey.truth);
-    io::write_colmap_text(out / "drone" / "sparse", to_colmap_model(survey));
-    const auto vins = vins_trajectory(survey);
-    io::write_tum_trajectory(out / "drone" / "vins_trajectory.tum", vins);
-    nlohmann::json images = nlohmann::json::array();
-    for (const auto& im : survey.images) {
-      images.push_back({{"name", im.name}, {"timestamp", im.timestamp}, {"T_world_cam", matrix_to_json(im.T_world_cam.matrix())}});
-    }
-    write_json(out / "truth" / "drone.json",
-               {{"T_map_drone", matrix_to_json(survey.T_world_sfm.matrix())},
-                {"scale_map_per_sfm_unit", survey.T_world_sfm.scale},
-                {"T_sfm_world", matrix_to_json(survey.T_sfm_world.matrix())},
-                {"T_vins_world", matrix_to_json(survey.T_vins_world.matrix())},
-                {"images", images}});
-    summary.drone_points = survey.cloud.size();
-    summary.drone_images = survey.images.size();
-    summary.seconds_drone = sw.lap_ms() / 1000.0;
-    if (progress) progress("drone", 1, 1);
-  }
-
-  // Preview: LiDAR returns (left, coloured by truth) and the drone cloud (right, mapped into the
-  // world by the true similarity), over the same extent.
-  {
-    Eigen::AlignedBox3d region;
-    for (const auto& stone : world.site.stones) region.extend(stone.bounds);
-    region.extend(ex.T_world_base(0.0).translation());
-    Aabb box;
-    box.min = (region.min() - Eigen::Vector3d::Constant(kPreviewMargin)).cast<float>();
-    box.max = (region.max() + Eigen::Vector3d::Constant(kPreviewMargin)).cast<float>();
-    box.min.z() = static_cast<float>(region.min().z() - 1.0);
-    box.max.z() = static_cast<float>(region.max().z() + 1.0);
-    Image left = render_top_view(preview, preview_colors, kPreviewPixelsPerMetre, box);
-    if (config.with_drone) {
-      PointCloud drone = io::read_cloud(out / "drone" / "cloud.ply").cloud;
-      transform_cloud(drone, read_drone_truth(out));
-      std::vector<Rgb> colors = drone.has_colors() ? drone.colors : std::vector<Rgb>(drone.size(), Rgb{120, 120, 120});
-      left = side_by_side(left, render_top_view(drone, colors, kPreviewPixelsPerMetre, box));
-    }
-    write_png(out / "preview.png", left);
-  }
-
+  nlohmann::json moves_json = nlohmann::json::array();
+  for (const StoneMove& m : moves) moves_json.push_back(move_json(m));
   nlohmann::json meta{{"format_version", io::kRunFormatVersion},
                       {"created_by", "cairn simulate"},
                       {"scenario", scenario},
                       {"seed", seed},
                       {"duration", duration},
+                      {"moves", moves_json},
                       {"frames", {{"world", "map frame M: gravity-aligned, z up, metres"},
                                   {"cabin", "x forward, z up, origin on the swing axis"},
                                   {"H", "horizontal VLP-16, spin axis = cabin z"},
@@ -424,6 +546,7 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
                                   {"drone_points", summary.drone_points}, {"drone_images", summary.drone_images}}},
                       {"config", config::to_json(config)}};
   write_json(out / "run.json", meta);
+  summary.seconds_write = (write_ms + sw.lap_ms()) / 1000.0;
   summary.seconds_total = total.elapsed_ms() / 1000.0;
   return summary;
 }

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <nlohmann/json_fwd.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -46,6 +47,10 @@ struct SimulationConfig {
   bool with_drone = true;             // fly the drone survey
   bool with_snapshot = true;          // write truth/map_snapshot.ply
   bool with_scan_truth = true;        // write per-point true labels of every sweep
+  /// Stones the machine moves during a run (StoneMove): held in the gripper this long (the arm in
+  /// its carry pose, the sweeps seeing it), then put down this high above the terrain and settled.
+  double carry_time = 4.0;   // [s]
+  double drop_height = 0.03;  // [m]
 
   template <class V>
   void visit(V& v) {
@@ -62,6 +67,8 @@ struct SimulationConfig {
     v("with_drone", with_drone, "fly the drone survey");
     v("with_snapshot", with_snapshot, "write the dense ground-truth map snapshot");
     v("with_scan_truth", with_scan_truth, "write the true label of every scan point");
+    v("carry_time", carry_time, "[s] a stone moved during the run is held in the gripper this long");
+    v("drop_height", drop_height, "[m] a moved stone is released this high above the terrain");
   }
 };
 
@@ -88,12 +95,6 @@ struct SimulationSummary {
 /// Progress callback: (stage, done, total).
 using Progress = std::function<void(const std::string&, std::size_t, std::size_t)>;
 
-/// Simulates `duration` seconds of the scenario and writes the run directory `out` (created; an
-/// existing non-empty directory is an InputError unless `overwrite`). Deterministic for a seed:
-/// the same inputs give identical files.
-SimulationSummary simulate_run(const std::string& scenario, const SimulationConfig& config, std::uint64_t seed,
-                               double duration, const std::filesystem::path& out, bool overwrite = false,
-                               const Progress& progress = {});
 
 /// The site of a simulation: generate_site(config.site, seed), or with settle_in_physics the
 /// site generated resting on the ground (embed_depth 0) and settled (settle_site; the result in
@@ -134,6 +135,57 @@ Eigen::Isometry3d held_stone_pose(const SimulatedWorld& world, double t);
 /// the ground's scene where the site has it (put it down with carry_and_release or
 /// execute_grasp). Returns its index; InputError when nothing is held.
 std::size_t release_stone(SimulatedWorld& world, double t, const SimulationConfig& config);
+
+/// A stone the machine moves during a run (issue #15 item 2: runs with several scanning
+/// segments): at `time` the gripper takes stone `stone` (the centred top-down grasp) and holds it
+/// in its carry pose for SimulationConfig::carry_time (the sweeps see the arm with it); then it is
+/// put down shifted by `shift` [m] and turned by `turn_deg` about the vertical through its
+/// centroid, drop_height above the terrain, and the site settles in the physics.
+struct StoneMove {
+  double time = 0.0;  // [s]
+  std::size_t stone = 0;
+  Eigen::Vector2d shift = Eigen::Vector2d::Zero();
+  double turn_deg = 0.0;
+};
+
+/// InputError naming the move: a stone the site lacks, non-finite values, a move starting before
+/// the previous one has put its stone down, or ending after the run. ConfigError for carry_time <= 0.
+void validate_moves(const std::vector<StoneMove>& moves, std::size_t stones, double duration,
+                    const SimulationConfig& config);
+
+/// The truth of one scanning segment: from t_start on, stone k lies at T_world_stone[k] (its mesh
+/// at t = 0 moved), except the held one (held >= 0), fixed in the gripper frame by T_gripper_stone.
+struct TruthSegment {
+  double t_start = 0.0;
+  int held = -1;
+  Eigen::Isometry3d T_gripper_stone = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Isometry3d> T_world_stone;
+};
+
+/// The moves of a run as they happen: advance(world, t) applies every pick-up and put-down due by
+/// t to the world (hold_stone, release_stone + carry_and_release) and opens a segment for each.
+class MoveScript {
+ public:
+  MoveScript(std::vector<StoneMove> moves, std::size_t stones);
+  void advance(SimulatedWorld& world, double t, const SimulationConfig& config);
+  [[nodiscard]] const std::vector<TruthSegment>& segments() const { return segments_; }
+  /// truth/segments.json: every segment with its end (the next one's start, or `duration`).
+  [[nodiscard]] nlohmann::json to_json(double duration) const;
+
+ private:
+  [[nodiscard]] double next_event(const SimulationConfig& config) const;
+  std::vector<StoneMove> moves_;
+  std::size_t next_ = 0;  // event 2i picks move i's stone up, 2i + 1 puts it down
+  std::vector<TruthSegment> segments_;
+};
+
+/// Simulates `duration` seconds of the scenario and writes the run directory `out` (created; an
+/// existing non-empty directory is an InputError unless `overwrite`). The machine moves stones as
+/// `moves` say between its sweeps (validate_moves; truth/segments.json holds the truth of every
+/// segment). Deterministic for a seed: the same inputs give identical files.
+SimulationSummary simulate_run(const std::string& scenario, const SimulationConfig& config, std::uint64_t seed,
+                               double duration, const std::filesystem::path& out, bool overwrite = false,
+                               const Progress& progress = {}, const std::vector<StoneMove>& moves = {});
 
 /// Executes a grasp plan in the physics (run_grasp_trial with config.gripper and
 /// config.physics) on the world's site, then moves the world to where the physics left it: the
