@@ -48,7 +48,8 @@ sim::StoneMove parse_move(const std::string& text) {
     from = to + 1;
   }
   if (v.size() < 4 || v.size() > 5) throw InputError("--move '" + text + "': expected T:K:DX:DY[:TURN_DEG]");
-  if (v[1] < 0 || v[1] != std::floor(v[1])) throw InputError("--move '" + text + "': the stone must be an index >= 0");
+  if (v[1] < 0 || v[1] > 1e6 || v[1] != std::floor(v[1]))
+    throw InputError("--move '" + text + "': the stone must be an index >= 0");
   return {.time = v[0], .stone = static_cast<std::size_t>(v[1]), .shift = {v[2], v[3]},
           .turn_deg = v.size() == 5 ? v[4] : 0.0};
 }
@@ -115,7 +116,7 @@ void add_simulate_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_flag("--overwrite", args->overwrite, "replace an existing run directory");
   cmd->add_flag("--no-drone", args->no_drone, "skip the drone survey");
   cmd->add_option("--move", args->moves,
-                  "T:K:DX:DY[:TURN_DEG] — at T s the machine picks stone K up, carries it for carry_time s and puts "
+                  "T:K:DX:DY[:TURN_DEG] — at T s the machine picks stone K up, holds it for held_time s and puts "
                   "it down shifted by (DX, DY) m and turned; repeatable (truth/segments.json)");
   args->common.add_to(*cmd);
   cmd->callback([&run, args] { run = [args] { return run_simulate(*args); }; });

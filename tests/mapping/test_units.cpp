@@ -70,7 +70,7 @@ TEST(SelfFilter, RemovesTheCarriedStoneWhileItIsInTheGripper) {
   const sim::SimulationConfig cfg = sim::scenario_config("exp1", sim::default_real_mesh_dir());
   sim::SimulatedWorld world = sim::make_world(cfg, 1);
   const GraspPlan plan = sim::centred_antipodal_grasp(world.site.stones[kStone], cfg.gripper, &world.site.terrain, {});
-  sim::hold_stone(world, kStone, plan.T_world_gripper, plan.opening, 0.0, cfg);
+  sim::hold_stone(world, kStone, plan.T_world_gripper, 0.0, cfg);
   std::vector<Eigen::Vector3d> in_gripper;  // the object's model in the gripper frame
   const PointCloud& v = world.site.stones[kStone].mesh.vertices;
   for (std::size_t i = 0; i < v.size(); ++i) in_gripper.push_back(world.held->T_G_world * v.world(i));

@@ -89,6 +89,22 @@ double Shape::intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d) cons
 
 double Shape::bounding_radius() const { return 0.5 * size.norm(); }
 
+JointState interpolate_joints(const std::vector<JointState>& states, double t) {
+  if (states.empty()) throw InputError("interpolate_joints: no joint states");
+  if (t <= states.front().time) return states.front();
+  if (t >= states.back().time) return states.back();
+  const auto it = std::upper_bound(states.begin(), states.end(), t,
+                                   [](double v, const JointState& s) { return v < s.time; });
+  const JointState& b = *it;
+  const JointState& a = *(it - 1);
+  const double s = (b.time > a.time) ? (t - a.time) / (b.time - a.time) : 0.0;
+  JointState q = a;
+  q.time = t;
+  for (std::size_t i = 0; i < q.names.size(); ++i)
+    q.positions[i] = (1 - s) * a.positions[i] + s * b.get(a.names[i], a.positions[i]);
+  return q;
+}
+
 Shape bounding_box_shape(std::string name, const std::vector<Eigen::Vector3d>& points) {
   if (points.empty()) throw InputError("bounding_box_shape: no points for '" + name + "'");
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();

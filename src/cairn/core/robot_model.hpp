@@ -52,6 +52,10 @@ struct JointState {
   void set(const std::string& name, double value);
 };
 
+/// Joint values at time t: linear interpolation between the two neighbouring states (joints by
+/// name, clamped at the ends). `states` sorted by time; throws InputError when empty.
+[[nodiscard]] JointState interpolate_joints(const std::vector<JointState>& states, double t);
+
 struct RobotModel {
   std::string name;
   std::vector<Link> links;  // parents come before their children; links[0] is the root

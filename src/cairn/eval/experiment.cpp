@@ -195,9 +195,9 @@ class Experiment {
   [[nodiscard]] const PointCloud& planning_model(const ObjectRecord& obj) const;
   [[nodiscard]] GraspPlan command(const grasp::GraspPlanning& p, const ObjectRecord& obj, const PointCloud& map,
                                  const Vec2d& target, int stone, double t0, GraspRecord& g) const;
-  sim::GraspTrialResult execute(const GraspPlan& plan, int attempt, GraspRecord& g);
+  sim::GraspTrialResult execute(const GraspPlan& plan, int attempt, GraspRecord& g, std::vector<Isometry3d>& motion);
   long scan_carried(const sim::GraspTrialResult& r, const GraspPlan& cmd, const Isometry3d& T_MG_grasp,
-                    const Tracker::Tracked& tr, double t0);
+                    const Isometry3d& moved, const Tracker::Tracked& tr, double t0);
   grasp::GraspPlanning plan(const ObjectRecord& obj, const PointCloud& map, int stone, GraspRecord& g);
   void write_trial(const sim::GraspTrialResult& r, const GraspRecord& g) const;
   void release_and_rescan(int round, int attempt, Tracker::Tracked& tr, const sim::GraspTrialResult& r,
@@ -461,8 +461,10 @@ GraspPlan Experiment::command(const grasp::GraspPlanning& p, const ObjectRecord&
 }
 
 /// Runs the command in the physics and makes its outcome the world the sensors see (stones
-/// settled where they came to rest); the truth figures of the attempt go into `g`.
-sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, GraspRecord& g) {
+/// settled where they came to rest; every stone's motion in `motion`); the truth figures of the
+/// attempt go into `g`.
+sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, GraspRecord& g,
+                                          std::vector<Isometry3d>& motion) {
   ScanningMachine& m = tracker_.machine();
   sim::Site& site = m.world().site;
   const std::vector<std::vector<Vec3d>> surfaces_before = surfaces(site);
@@ -474,7 +476,12 @@ sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, Gr
   sim::GraspTrialResult r = sim::run_grasp_trial(site, plan, m.config().gripper, physics);
   sim::apply_stone_poses(site, r.stone_poses);
   tracker_.world_moved(r.stone_poses);
-  if (!r.settled) tracker_.world_moved(sim::settle_site(site, m.config().physics).stone_poses);
+  motion = r.stone_poses;
+  if (!r.settled) {
+    const std::vector<Isometry3d> settling = sim::settle_site(site, m.config().physics).stone_poses;
+    tracker_.world_moved(settling);
+    for (std::size_t j = 0; j < motion.size(); ++j) motion[j] = settling[j] * motion[j];
+  }
   m.world().scene = sim::make_world_scene(site, m.config().terrain_mesh_spacing);
   std::vector<bool> skip = moved_;
   skip[std::size_t(g.stone)] = true;
@@ -492,15 +499,15 @@ sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, Gr
 
 /// The sweeps while the stone hung in the gripper on its way (issue #15 item 2): from the start
 /// of the trial's move phase for carry_scan seconds, the stone held where the jaws closed on it
-/// (the site's mesh has moved by the trial's outcome since), the object attached to the
-/// self-filter through the commanded grasp. -1 when nothing was carried.
+/// (the site's mesh has moved by `moved` since), the object attached to the self-filter through
+/// the commanded grasp. -1 when nothing was carried.
 long Experiment::scan_carried(const sim::GraspTrialResult& r, const GraspPlan& cmd, const Isometry3d& T_MG_grasp,
-                              const Tracker::Tracked& tr, double t0) {
-  const sim::PhaseTiming* moved = find_phase(r, "move");
-  if (moved == nullptr || r.grasped_stone != tr.stone) return -1;
-  const double from = t0 + moved->start, to = std::min(from + c_.tracking.carry_scan, t0 + moved->end);
-  const Isometry3d T_world_G = r.stone_poses[std::size_t(tr.stone)] * cmd.T_world_gripper;
-  return tracker_.scan_while_carrying(tr, T_world_G, T_MG_grasp, r.grasp_opening, from, to);
+                              const Isometry3d& moved, const Tracker::Tracked& tr, double t0) {
+  const sim::PhaseTiming* carrying = find_phase(r, "move");
+  if (carrying == nullptr || r.grasped_stone != tr.stone) return -1;
+  const double from = t0 + carrying->start, to = std::min(from + c_.tracking.carry_scan, t0 + carrying->end);
+  const Isometry3d T_world_G = moved * cmd.T_world_gripper;
+  return tracker_.scan_while_carrying(tr, T_world_G, T_MG_grasp, from, to);
 }
 
 void Experiment::write_trial(const sim::GraspTrialResult& r, const GraspRecord& g) const {
@@ -583,8 +590,9 @@ bool Experiment::attempt(int round, int attempt, Tracker::Tracked& tr, const Vec
   // The command from the map without the grasped object (its voxels just removed): a target near
   // the stone's own place would otherwise find the stone for the ground.
   const GraspPlan cmd = command(p, obj, m.mapper().map(), target, tr.stone, t0, g);
-  const sim::GraspTrialResult r = execute(cmd, attempt, g);
-  mv.carried_in_map = scan_carried(r, cmd, best.T_map_gripper, tr, t0);
+  std::vector<Isometry3d> motion;
+  const sim::GraspTrialResult r = execute(cmd, attempt, g, motion);
+  mv.carried_in_map = scan_carried(r, cmd, best.T_map_gripper, motion[std::size_t(tr.stone)], tr, t0);
   score_placement(truth, p.cloud.mass_centroid, r, g);
   g.detection = detect_grasp_failure(r, c_.detection);
   release_and_rescan(round, attempt, tr, r, best.T_map_gripper, t0, mv, E, g.detection);

@@ -55,7 +55,6 @@ struct ObjectTrackingConfig {
   double slot_clearance = 0.3;        // [m] gap kept to other stones' bounding boxes
   double slot_footprint = 0.9;        // [m] radius over which the ground's flatness is measured
   double turn_deg = 40.0;         // [deg] each move turns the stone about the vertical
-  double drop_height = 0.03;      // [m] release height above the ground
   double score_near = 0.05;       // [m] a map point this close to a true surface lies on it
   double floating_height = 0.5;   // [m] a map point on no true surface this high above the ground floats
   double truth_spacing = 0.04;    // [m] sampling of the true surfaces for scoring

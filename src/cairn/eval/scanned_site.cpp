@@ -77,6 +77,10 @@ ScanningMachine::ScanningMachine(const sim::SimulationConfig& config, std::uint6
   mapper_->add_state_estimates(state_.estimate);
 }
 
+double ScanningMachine::joints_fed_until() const {
+  return next_joints_ == 0 ? -INFINITY : state_.joints[next_joints_ - 1].time;
+}
+
 void ScanningMachine::feed_joints(double t_to) {
   // The encoder noise was drawn with the state estimate; the arm is read as commanded by now (a
   // grasp moves it after the state estimate was simulated).

@@ -58,6 +58,9 @@ class ScanningMachine {
   /// commands (the map frame is the estimate's).
   [[nodiscard]] Eigen::Isometry3d E_state(double t) const;
   [[nodiscard]] Vec3d base() const { return base_; }
+  /// Time of the last joint state given to the mapper (-inf before the first scan): an arm
+  /// command must come after it, or the mapper keeps the readings of the arm before the command.
+  [[nodiscard]] double joints_fed_until() const;
   [[nodiscard]] double now() const { return now_; }
   [[nodiscard]] const sim::SimulationConfig& config() const { return sim_; }
   [[nodiscard]] sim::SimulatedWorld& world() { return world_; }

@@ -238,46 +238,52 @@ std::size_t floating(const PointCloud& map, const SurfaceTruth& truth, const sim
 
 }  // namespace
 
-HoldPose top_down_hold(const ObjectRecord& obj, const GripperConfig& gripper) {
-  HoldPose h;
+Isometry3d top_down_hold(const ObjectRecord& obj) {
   Eigen::Matrix3d R;
   R.col(0) = -Vec3d::UnitZ();
   R.col(1) = Vec3d::UnitY();
   R.col(2) = R.col(0).cross(R.col(1));
-  double top = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
-  for (std::size_t i = 0; i < obj.cloud.size(); ++i) {
-    const Vec3d p = obj.cloud.world(i);
-    top = std::max(top, p.z());
-    y_lo = std::min(y_lo, p.y());
-    y_hi = std::max(y_hi, p.y());
-  }
-  h.T_MG.linear() = R;
-  h.T_MG.translation() = Vec3d(obj.centroid.x(), obj.centroid.y(), obj.cloud.empty() ? obj.centroid.z() : top);
-  h.opening = std::clamp(y_hi - y_lo, gripper.closed_gap, max_opening(gripper));
-  return h;
+  double top = obj.centroid.z();
+  for (std::size_t i = 0; i < obj.cloud.size(); ++i) top = std::max(top, obj.cloud.world(i).z());
+  Isometry3d T_MG = Isometry3d::Identity();
+  T_MG.linear() = R;
+  T_MG.translation() = Vec3d(obj.centroid.x(), obj.centroid.y(), top);
+  return T_MG;
 }
 
 long Tracker::scan_while_carrying(const Tracked& tr, const Isometry3d& T_world_G, const Isometry3d& T_MG,
-                                  double opening, double t_from, double t_to) {
-  if (!(cfg_.carry_scan > 0.0) || !(t_to > t_from)) return -1;
+                                  double t_from, double t_to) {
+  // The arm moves after the last joint reading the mapper has (so none of the parked arm is read
+  // as carrying).
+  const double t_hold = std::max(t_from, std::nextafter(machine_.joints_fed_until(), INFINITY));
+  if (!(cfg_.carry_scan > 0.0) || !(t_to > t_hold)) return -1;
   sim::SimulatedWorld& world = machine_.world();
   const auto truth_now = truth();  // the stone where the site has it; it is in the air meanwhile
   const PointCloud before = machine_.mapper().map();
   const Isometry3d E = truth_now->offset->map_offset(before);
   const sim::Terrain& ground = world.site.terrain;
   const std::size_t floating_before = floating(before, *truth_now, ground, E, cfg_.score_near, cfg_.floating_height);
-  sim::hold_stone(world, std::size_t(tr.stone), T_world_G, opening, t_from, machine_.config());
-  if (cfg_.filter_carried) {
-    const ObjectRecord obj = *db_->object(tr.object);
-    std::vector<Vec3d> in_gripper;
-    in_gripper.reserve(obj.cloud.size());
-    const Isometry3d T_GM = T_MG.inverse();
-    for (std::size_t i = 0; i < obj.cloud.size(); ++i) in_gripper.push_back(T_GM * obj.cloud.world(i));
-    if (!in_gripper.empty()) machine_.mapper().attach(kGripperLink, bounding_box_shape("carried_object", in_gripper), t_from);
+  sim::hold_stone(world, std::size_t(tr.stone), T_world_G, t_hold, machine_.config());
+  const auto let_go = [&] {
+    machine_.mapper().detach(t_to);
+    (void)sim::release_stone(world, t_to, machine_.config());
+  };
+  try {
+    if (cfg_.filter_carried) {
+      const ObjectRecord obj = *db_->object(tr.object);
+      std::vector<Vec3d> in_gripper;
+      in_gripper.reserve(obj.cloud.size());
+      const Isometry3d T_GM = T_MG.inverse();
+      for (std::size_t i = 0; i < obj.cloud.size(); ++i) in_gripper.push_back(T_GM * obj.cloud.world(i));
+      if (!in_gripper.empty())
+        machine_.mapper().attach(kGripperLink, bounding_box_shape("carried_object", in_gripper), t_hold);
+    }
+    machine_.scan(t_hold, t_to);
+  } catch (...) {  // the world lets go of the stone whatever happened
+    let_go();
+    throw;
   }
-  machine_.scan(t_from, t_to);
-  machine_.mapper().detach(t_to);
-  (void)sim::release_stone(world, t_to, machine_.config());
+  let_go();
   const PointCloud after = machine_.mapper().map();
   return long(floating(after, *truth_now, ground, E, cfg_.score_near, cfg_.floating_height)) - long(floating_before);
 }
@@ -322,8 +328,8 @@ bool Tracker::move(int round, Tracked& tr) {
   // Carry: commanded in the map frame, executed where the state estimate puts the gripper.
   const double t_grasp = machine_.now(), t_release = t_grasp + cfg_.carry_time;
   // Lifted by a top-down gripper on the object's top, the sensors scanning meanwhile.
-  const HoldPose hold = top_down_hold(obj, machine_.config().gripper);
-  m.carried_in_map = scan_while_carrying(tr, machine_.E_state(t_grasp) * hold.T_MG, hold.T_MG, hold.opening, t_grasp,
+  const Isometry3d T_MG_hold = top_down_hold(obj);
+  m.carried_in_map = scan_while_carrying(tr, machine_.E_state(t_grasp) * T_MG_hold, T_MG_hold, t_grasp,
                                          t_grasp + std::min(cfg_.carry_scan, cfg_.carry_time));
   // The stone keeps its seat: tilted with the ground from under it to under the slot, then turned.
   const sim::Terrain& ground = machine_.world().site.terrain;
@@ -332,7 +338,8 @@ bool Tracker::move(int round, Tracked& tr) {
   Isometry3d T_MG_release = yaw_pose(Vec3d(slot.x(), slot.y(), obj.centroid.z()), cfg_.turn_deg / kDegPerRad);
   T_MG_release.linear() = tilt.toRotationMatrix() * T_MG_release.linear();
   const Isometry3d commanded = machine_.E_state(t_release) * T_MG_release * T_MG_grasp.inverse() * machine_.E_state(t_grasp).inverse();
-  const sim::CarryResult carry = sim::carry_and_release(machine_.world(), std::size_t(tr.stone), commanded, cfg_.drop_height, machine_.config());
+  const sim::CarryResult carry = sim::carry_and_release(machine_.world(), std::size_t(tr.stone), commanded,
+                                                          machine_.config().drop_height, machine_.config());
   std::vector<Isometry3d> poses = carry.settling;
   poses[std::size_t(tr.stone)] = carry.total;
   world_moved(poses);

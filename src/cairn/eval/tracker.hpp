@@ -21,13 +21,9 @@ namespace cairn::eval {
 /// The cumulative transform of an object's history after its creation (world frame).
 [[nodiscard]] Eigen::Isometry3d db_motion(const std::vector<PoseUpdate>& history);
 
-/// The gripper of a rigid carry (the object-tracking experiment's grasps are not planned): top
-/// down on the object's top above its centroid (x down, y across), the jaws at its width.
-struct HoldPose {
-  Eigen::Isometry3d T_MG = Eigen::Isometry3d::Identity();
-  double opening = 0.0;
-};
-[[nodiscard]] HoldPose top_down_hold(const ObjectRecord& obj, const GripperConfig& gripper);
+/// The gripper T_MG of a rigid carry (the object-tracking experiment's grasps are not planned):
+/// top down on the object's top above its centroid (x down, y across).
+[[nodiscard]] Eigen::Isometry3d top_down_hold(const ObjectRecord& obj);
 
 class Tracker {
  public:
@@ -81,7 +77,7 @@ class Tracker {
   /// floating_height above the ground: the carried stone remapped), or -1 when carry_scan is 0
   /// or the window is empty.
   long scan_while_carrying(const Tracked& tr, const Eigen::Isometry3d& T_world_G, const Eigen::Isometry3d& T_MG,
-                           double opening, double t_from, double t_to);
+                           double t_from, double t_to);
   /// True when no other stone's bounding box comes within half + slot_clearance of xy.
   [[nodiscard]] bool slot_clear(const Eigen::Vector2d& xy, int stone, double half) const;
 

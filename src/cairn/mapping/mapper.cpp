@@ -82,7 +82,7 @@ void Mapper::detach(double t) {
 const RobotModel& Mapper::robot_during(double t0, double t1, RobotModel& buffer) const {
   bool any = false;
   for (const Attachment& a : attached_) {
-    if (a.t_from > t1 || a.t_to < t0) continue;
+    if (a.t_from > t1 || a.t_to <= t0) continue;  // [t_from, t_to) against the sweep's [t0, t1]
     if (!any) buffer = setup_.robot;
     any = true;
     buffer.links[a.link].shapes.push_back(a.shape);

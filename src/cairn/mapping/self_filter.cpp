@@ -7,22 +7,6 @@
 
 namespace cairn {
 
-JointState interpolate_joints(const std::vector<JointState>& states, double t) {
-  if (states.empty()) throw InputError("self-filter: no joint states");
-  if (t <= states.front().time) return states.front();
-  if (t >= states.back().time) return states.back();
-  const auto it = std::upper_bound(states.begin(), states.end(), t,
-                                   [](double v, const JointState& s) { return v < s.time; });
-  const JointState& b = *it;
-  const JointState& a = *(it - 1);
-  const double s = (b.time > a.time) ? (t - a.time) / (b.time - a.time) : 0.0;
-  JointState q = a;
-  q.time = t;
-  for (std::size_t i = 0; i < q.names.size(); ++i)
-    q.positions[i] = (1 - s) * a.positions[i] + s * b.get(a.names[i], a.positions[i]);
-  return q;
-}
-
 std::vector<PosedShape> pose_shapes(const RobotModel& robot, const JointState& q,
                                     const Eigen::Isometry3d& T_root_F, double padding) {
   const std::vector<Eigen::Isometry3d> T_root_link = robot.forward_kinematics(q);

@@ -13,10 +13,6 @@
 
 namespace cairn {
 
-/// Joint values at time t: linear interpolation between the two neighbouring states (joints by
-/// name, clamped at the ends). `states` sorted by time; throws InputError when empty.
-[[nodiscard]] JointState interpolate_joints(const std::vector<JointState>& states, double t);
-
 /// One collision shape posed in a query frame F, with its bounding sphere for a quick reject.
 struct PosedShape {
   const Shape* shape = nullptr;

@@ -31,11 +31,7 @@ JointState Excavator::joints_at(double t) const {
   return q;
 }
 
-ArmPose Excavator::parked() const {
-  const auto& c = config_;
-  return {.boom_deg = c.boom_deg, .stick_deg = c.stick_deg, .gripper_pitch_deg = c.gripper_pitch_deg,
-          .gripper_roll_deg = c.gripper_roll_deg, .gripper_opening = c.gripper_opening};
-}
+ArmPose Excavator::parked() const { return config_.parking; }
 
 ArmPose Excavator::arm_at(double t) const {
   // The latest command at or before t (commands are sorted by time).

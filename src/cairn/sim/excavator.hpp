@@ -45,9 +45,10 @@ struct ExcavatorConfig {
   // Small cabin vibration from the hydraulics (roll and pitch about the base) [deg], [Hz].
   double vibration_deg = 0.05;
   double vibration_frequency = 2.7;
-  // Arm parking pose during mapping [deg] (joint axes: see make_excavator_model).
-  double boom_deg = 52.0, stick_deg = -132.0, gripper_pitch_deg = -10.0, gripper_roll_deg = 0.0;
-  double gripper_opening = 0.8;  // [m]
+  /// Arm pose during mapping (joint axes: see make_excavator_model): the gripper hangs pointing
+  /// down in front of the cabin, its palm ~2.2 m above the ground, seen by both LiDARs.
+  ArmPose parking{.boom_deg = 52.0, .stick_deg = -132.0, .gripper_pitch_deg = -10.0, .gripper_roll_deg = 0.0,
+                  .gripper_opening = 0.8};
   /// Arm pose while a grasped stone is carried (the cabin keeps swinging, so the LiDARs see the
   /// arm with the stone): boom up, stick in, gripper pointing down, its palm ~2.5 m above the
   /// ground, 0.25 m above the parking pose (the opening is the grasp's, set when it closes).
@@ -68,11 +69,7 @@ struct ExcavatorConfig {
     v("swing_phase_deg", swing_phase_deg, "[deg] swing phase at t = 0");
     v("vibration_deg", vibration_deg, "[deg] cabin roll/pitch vibration amplitude");
     v("vibration_frequency", vibration_frequency, "[Hz] cabin vibration frequency");
-    v("boom_deg", boom_deg, "[deg] boom joint in the parking pose (raises the boom)");
-    v("stick_deg", stick_deg, "[deg] stick joint in the parking pose");
-    v("gripper_pitch_deg", gripper_pitch_deg, "[deg] gripper pitch in the parking pose");
-    v("gripper_roll_deg", gripper_roll_deg, "[deg] gripper rotator in the parking pose");
-    v("gripper_opening", gripper_opening, "[m] jaw opening in the parking pose");
+    v("parking", parking, "arm pose during mapping");
     v("carry", carry, "arm pose while a grasped stone is carried");
     v("lidar_x", lidar_x, "[m] LiDAR mounts: x in the cabin frame");
     v("lidar_z", lidar_z, "[m] LiDAR mounts: z in the cabin frame");

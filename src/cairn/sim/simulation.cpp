@@ -161,15 +161,33 @@ SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed) {
   return SimulatedWorld{std::move(site), std::move(excavator), std::move(scene)};
 }
 
-void hold_stone(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_world_G_grasp, double opening,
-                double t, const SimulationConfig& config) {
+namespace {
+
+/// The jaws closed on a stone held at T_G_world: its width across them (G's y) over the part
+/// between the palm and the jaw tips, within the gripper's range.
+double closed_opening(const Stone& stone, const Eigen::Isometry3d& T_G_world, const GripperConfig& gripper) {
+  double lo = INFINITY, hi = -INFINITY;
+  const PointCloud& v = stone.mesh.vertices;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const Eigen::Vector3d p = T_G_world * v.world(i);
+    if (p.x() < 0.0 || p.x() > gripper.jaw_length) continue;
+    lo = std::min(lo, p.y());
+    hi = std::max(hi, p.y());
+  }
+  return std::clamp(hi > lo ? hi - lo : 0.0, gripper.closed_gap, max_opening(gripper));
+}
+
+}  // namespace
+
+void hold_stone(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_world_G_grasp, double t,
+                const SimulationConfig& config) {
   if (world.held) throw InputError("hold_stone: the gripper already holds stone " + std::to_string(world.held->stone));
   if (k >= world.site.stones.size()) throw InputError("hold_stone: no stone " + std::to_string(k));
   if (!T_world_G_grasp.matrix().allFinite()) throw InputError("hold_stone: the grasp pose is not finite");
-  ArmPose carry = config.excavator.carry;
-  carry.gripper_opening = opening;
-  world.excavator.move_arm(t, carry);
   const HeldStone held{.stone = k, .T_G_world = T_world_G_grasp.inverse()};
+  ArmPose carry = config.excavator.carry;
+  carry.gripper_opening = closed_opening(world.site.stones[k], held.T_G_world, config.gripper);
+  world.excavator.move_arm(t, carry);
   io::Mesh mesh = world.site.stones[k].mesh;
   transform_cloud(mesh.vertices, held.T_G_world);
   auto scene = std::make_unique<RayScene>();
@@ -370,6 +388,71 @@ void write_preview(const fs::path& out, const SimulatedWorld& world, const Previ
   write_png(out / "preview.png", left);
 }
 
+/// Writes sweeps as they come (scan and truth files, the index, a share for the preview).
+class SweepWriter {
+ public:
+  SweepWriter(const fs::path& out, const Excavator& ex, const SimulationConfig& config, SimulationSummary& summary)
+      : out_(out), ex_(ex), config_(config), summary_(summary) {}
+
+  void write(const Sweep& sweep) {
+    PointCloud cloud;
+    cloud.points = sweep.points;
+    cloud.times = sweep.times;
+    ScalarField ring{.name = "ring", .values = {}};
+    ring.values.reserve(sweep.rings.size());
+    for (auto r : sweep.rings) ring.values.push_back(static_cast<float>(r));
+    cloud.fields.push_back(std::move(ring));
+    const std::string file = sweep_file(sweep.sensor, sweep.index);
+    io::write_ply(out_ / file, cloud);
+    if (config_.with_scan_truth) {
+      fs::path truth = out_ / "truth" / file;
+      truth.replace_extension(".npy");
+      io::write_npy_int32(truth, sweep.truth);
+    }
+    index_.push_back({sweep.sensor, sweep.index, sweep.t_start, sweep.t_end, sweep.points.size(), file});
+    const Eigen::Isometry3d T_cabin_sensor = sweep.sensor == "H" ? ex_.T_cabin_H() : ex_.T_cabin_V();
+    for (std::size_t p = 0; p < sweep.points.size(); p += kPreviewStride) {
+      const Eigen::Isometry3d T = ex_.T_world_cabin(sweep.times[p]) * T_cabin_sensor;
+      preview_.cloud.points.push_back((T * sweep.points[p].cast<double>()).cast<float>());
+      preview_.colors.push_back(truth_color(sweep.truth[p]));
+    }
+    summary_.points += sweep.points.size();
+    summary_.rays += sweep.num_rays;
+  }
+  /// scans/index.csv, in order of start time (sweeps across a move are written after it).
+  void write_index() {
+    std::stable_sort(index_.begin(), index_.end(), [](const io::ScanInfo& a, const io::ScanInfo& b) {
+      return a.t_start < b.t_start;
+    });
+    io::write_scan_index(out_ / "scans" / "index.csv", index_);
+  }
+  [[nodiscard]] const PreviewPoints& preview() const { return preview_; }
+
+ private:
+  fs::path out_;
+  const Excavator& ex_;
+  const SimulationConfig& config_;
+  SimulationSummary& summary_;
+  std::vector<io::ScanInfo> index_;
+  PreviewPoints preview_;
+};
+
+/// One revolution across a change of the world at time e: the returns fired before e from
+/// `before`, those from e on from `after` (the same revolution simulated in the changed world).
+Sweep joined_at(const Sweep& before, const Sweep& after, double e) {
+  Sweep s = before;
+  s.points.clear(), s.times.clear(), s.rings.clear(), s.truth.clear();
+  for (const Sweep* part : {&before, &after})
+    for (std::size_t i = 0; i < part->points.size(); ++i) {
+      if ((part == &before) != (part->times[i] < e)) continue;
+      s.points.push_back(part->points[i]);
+      s.times.push_back(part->times[i]);
+      s.rings.push_back(part->rings[i]);
+      s.truth.push_back(part->truth[i]);
+    }
+  return s;
+}
+
 nlohmann::json move_json(const StoneMove& m) {
   return {{"time", m.time}, {"stone", m.stone}, {"shift", {m.shift.x(), m.shift.y()}}, {"turn_deg", m.turn_deg}};
 }
@@ -378,18 +461,25 @@ nlohmann::json move_json(const StoneMove& m) {
 
 void validate_moves(const std::vector<StoneMove>& moves, std::size_t stones, double duration,
                     const SimulationConfig& config) {
-  if (!(config.carry_time > 0) || !std::isfinite(config.carry_time))
-    throw ConfigError("carry_time: must be positive (got " + std::to_string(config.carry_time) + ")");
-  double free_from = 0.0;  // the gripper is free again from here
+  if (!moves.empty() && (!(config.held_time > 0) || !std::isfinite(config.held_time)))
+    throw ConfigError("held_time: must be positive (got " + std::to_string(config.held_time) + ")");
+  // Between two changes of the world lies at least one revolution (a sweep across a change is
+  // joined from the world before and after it: one change per sweep).
+  const double period = 1.0 / config.lidar.rate;
+  if (!moves.empty() && !(config.held_time > period))
+    throw ConfigError("held_time: must exceed one LiDAR revolution (" + std::to_string(period) + " s)");
+  double free_from = -INFINITY;  // the gripper is free again from here (plus one revolution)
   for (std::size_t i = 0; i < moves.size(); ++i) {
     const StoneMove& m = moves[i];
     const std::string name = "move " + std::to_string(i + 1);
     if (!std::isfinite(m.time) || !m.shift.allFinite() || !std::isfinite(m.turn_deg))
       throw InputError(name + ": non-finite time, shift or turn");
     if (m.stone >= stones) throw InputError(name + ": no stone " + std::to_string(m.stone) + " (the site has " + std::to_string(stones) + ")");
-    if (m.time < free_from)
-      throw InputError(name + ": starts at " + std::to_string(m.time) + " s, before the gripper is free (" + std::to_string(free_from) + " s)");
-    free_from = m.time + config.carry_time;
+    if (m.time < 0.0) throw InputError(name + ": starts before the run (" + std::to_string(m.time) + " s)");
+    if (!(m.time > free_from + period))
+      throw InputError(name + ": starts at " + std::to_string(m.time) + " s, less than one LiDAR revolution after the previous move ends (" +
+                       std::to_string(free_from) + " s)");
+    free_from = m.time + config.held_time;
     if (free_from > duration)
       throw InputError(name + ": ends at " + std::to_string(free_from) + " s, after the run (" + std::to_string(duration) + " s)");
   }
@@ -403,7 +493,7 @@ MoveScript::MoveScript(std::vector<StoneMove> moves, std::size_t stones) : moves
 double MoveScript::next_event(const SimulationConfig& config) const {
   if (next_ >= 2 * moves_.size()) return INFINITY;
   const StoneMove& m = moves_[next_ / 2];
-  return next_ % 2 == 0 ? m.time : m.time + config.carry_time;
+  return next_ % 2 == 0 ? m.time : m.time + config.held_time;
 }
 
 void MoveScript::advance(SimulatedWorld& world, double t, const SimulationConfig& config) {
@@ -413,7 +503,7 @@ void MoveScript::advance(SimulatedWorld& world, double t, const SimulationConfig
     seg.t_start = e;
     if (next_ % 2 == 0) {  // the gripper takes the stone (the centred top-down grasp) and lifts it
       const GraspPlan plan = centred_antipodal_grasp(world.site.stones[m.stone], config.gripper, &world.site.terrain, {});
-      hold_stone(world, m.stone, plan.T_world_gripper, plan.opening, e, config);
+      hold_stone(world, m.stone, plan.T_world_gripper, e, config);
       seg.held = static_cast<int>(m.stone);
       seg.T_gripper_stone = world.held->T_G_world * seg.T_world_stone[m.stone];
     } else {  // ... and puts it down shifted and turned about the vertical through its centroid
@@ -461,12 +551,12 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
                                double duration, const fs::path& out, bool overwrite, const Progress& progress,
                                const std::vector<StoneMove>& moves) {
   if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("simulate: duration must be positive");
-  prepare_run_directory(out, overwrite);
   validate(config.lidar);  // fail before any file is written
   Stopwatch total, sw;
   SimulationSummary summary{.scenario = scenario, .seed = seed, .duration = duration};
   SimulatedWorld world = make_world(config, seed);
   validate_moves(moves, world.site.stones.size(), duration, config);
+  prepare_run_directory(out, overwrite);  // after every check: a bad input never removes an old run
   for (const auto* dir : {"scans/H", "scans/V", "state", "drone/sparse", "truth/scans/H", "truth/scans/V", "truth/stones"}) {
     fs::create_directories(out / dir);
   }
@@ -483,50 +573,38 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
 
   // Sweeps, written as they come; the machine moves stones between them.
   MoveScript script(moves, world.site.stones.size());
-  std::vector<io::ScanInfo> index;
-  PreviewPoints preview;  // a share of the returns in the world frame (true poses), for the picture
-  const Excavator& ex = world.excavator;
+  SweepWriter writer(out, world.excavator, config, summary);
   const auto schedule = sweep_schedule(config.lidar, duration, seed);
   double lidar_ms = 0;
-  for (std::size_t i = 0; i < schedule.size(); ++i) {
+  const auto simulate = [&](const SweepSchedule& s) {
     Stopwatch one;
-    script.advance(world, schedule[i].t_start, config);
-    const Sweep sweep = simulate_scheduled_sweep(world, config.lidar, schedule[i], seed);
+    Sweep sweep = simulate_scheduled_sweep(world, config.lidar, s, seed);
     lidar_ms += one.lap_ms();
-    PointCloud cloud;
-    cloud.points = sweep.points;
-    cloud.times = sweep.times;
-    ScalarField ring{.name = "ring", .values = {}};
-    ring.values.reserve(sweep.rings.size());
-    for (auto r : sweep.rings) ring.values.push_back(static_cast<float>(r));
-    cloud.fields.push_back(std::move(ring));
-    const std::string file = sweep_file(sweep.sensor, sweep.index);
-    io::write_ply(out / file, cloud);
-    if (config.with_scan_truth) {
-      fs::path truth = out / "truth" / file;
-      truth.replace_extension(".npy");
-      io::write_npy_int32(truth, sweep.truth);
-    }
-    index.push_back({sweep.sensor, sweep.index, sweep.t_start, sweep.t_end, sweep.points.size(), file});
-    const Eigen::Isometry3d T_cabin_sensor = sweep.sensor == "H" ? ex.T_cabin_H() : ex.T_cabin_V();
-    for (std::size_t p = 0; p < sweep.points.size(); p += kPreviewStride) {
-      const Eigen::Isometry3d T = ex.T_world_cabin(sweep.times[p]) * T_cabin_sensor;
-      preview.cloud.points.push_back((T * sweep.points[p].cast<double>()).cast<float>());
-      preview.colors.push_back(truth_color(sweep.truth[p]));
-    }
-    summary.points += sweep.points.size();
-    summary.rays += sweep.num_rays;
-    write_ms += one.lap_ms();
+    return sweep;
+  };
+  // The sweeps in flight when the next move happens see the world before it until then and after
+  // it from then on (each firing draws its own random numbers, so the two halves join seamlessly).
+  std::vector<std::pair<SweepSchedule, Sweep>> spanning;
+  const auto move_happens = [&](double e) {
+    script.advance(world, e, config);
+    for (const auto& [s, before] : spanning) writer.write(joined_at(before, simulate(s), e));
+    spanning.clear();
+  };
+  for (std::size_t i = 0; i < schedule.size(); ++i) {
+    for (double e = script.next_event(config); e <= schedule[i].t_start; e = script.next_event(config)) move_happens(e);
+    Sweep sweep = simulate(schedule[i]);
+    if (sweep.t_end >= script.next_event(config)) spanning.emplace_back(schedule[i], std::move(sweep));
+    else writer.write(sweep);
     if (progress) progress("lidar", i + 1, schedule.size());
   }
-  script.advance(world, duration, config);  // moves after the last sweep
+  for (double e = script.next_event(config); std::isfinite(e); e = script.next_event(config)) move_happens(e);
   summary.sweeps = schedule.size();
   summary.seconds_lidar = lidar_ms / 1000.0;
-  sw.lap_ms();
-  io::write_scan_index(out / "scans" / "index.csv", index);
-  write_machine(out, ex, config, seed, duration);  // the arm as commanded over the whole run
+  write_ms += sw.lap_ms() - lidar_ms;
+  writer.write_index();
+  write_machine(out, world.excavator, config, seed, duration);  // the arm as commanded over the whole run
   write_json(out / "truth" / "segments.json", script.to_json(duration));
-  write_preview(out, world, preview, config.with_drone);
+  write_preview(out, world, writer.preview(), config.with_drone);
 
   nlohmann::json moves_json = nlohmann::json::array();
   for (const StoneMove& m : moves) moves_json.push_back(move_json(m));

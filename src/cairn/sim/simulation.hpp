@@ -47,9 +47,10 @@ struct SimulationConfig {
   bool with_drone = true;             // fly the drone survey
   bool with_snapshot = true;          // write truth/map_snapshot.ply
   bool with_scan_truth = true;        // write per-point true labels of every sweep
-  /// Stones the machine moves during a run (StoneMove): held in the gripper this long (the arm in
-  /// its carry pose, the sweeps seeing it), then put down this high above the terrain and settled.
-  double carry_time = 4.0;   // [s]
+  /// Stones the machine moves during a run (StoneMove) are held in the gripper this long (the arm
+  /// in its carry pose, the sweeps seeing it); carried stones (StoneMove, carry_and_release in the
+  /// experiments) are put down this high above the terrain and settled.
+  double held_time = 4.0;     // [s]
   double drop_height = 0.03;  // [m]
 
   template <class V>
@@ -67,8 +68,8 @@ struct SimulationConfig {
     v("with_drone", with_drone, "fly the drone survey");
     v("with_snapshot", with_snapshot, "write the dense ground-truth map snapshot");
     v("with_scan_truth", with_scan_truth, "write the true label of every scan point");
-    v("carry_time", carry_time, "[s] a stone moved during the run is held in the gripper this long");
-    v("drop_height", drop_height, "[m] a moved stone is released this high above the terrain");
+    v("held_time", held_time, "[s] a stone moved during the run is held in the gripper this long");
+    v("drop_height", drop_height, "[m] a carried stone is released this high above the terrain");
   }
 };
 
@@ -121,13 +122,14 @@ struct SimulatedWorld {
 SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed);
 
 /// Stone k taken into the gripper at time t (issue #15 item 2: the sweeps see the arm with the
-/// stone while it is carried). From t on the arm holds config.excavator.carry with the jaws at
-/// `opening`, and the stone stays fixed in the gripper frame where the grasp left it:
+/// stone while it is carried). From t on the arm holds config.excavator.carry with the jaws closed
+/// on the stone (their opening: its width across the jaws), and the stone stays fixed in the
+/// gripper frame where the grasp left it:
 /// T_world_G_grasp is the true gripper pose when the jaws closed on the stone as it lies in the
 /// site. The stone leaves the ground's ray-cast scene. Throws InputError when a stone is already
 /// held, k is out of range or the pose is not finite, and as Excavator::move_arm.
-void hold_stone(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_world_G_grasp, double opening,
-                double t, const SimulationConfig& config);
+void hold_stone(SimulatedWorld& world, std::size_t k, const Eigen::Isometry3d& T_world_G_grasp, double t,
+                const SimulationConfig& config);
 /// World pose at time t of the held stone's site mesh (vertex v lies at T * v); InputError when
 /// nothing is held.
 Eigen::Isometry3d held_stone_pose(const SimulatedWorld& world, double t);
@@ -138,7 +140,7 @@ std::size_t release_stone(SimulatedWorld& world, double t, const SimulationConfi
 
 /// A stone the machine moves during a run (issue #15 item 2: runs with several scanning
 /// segments): at `time` the gripper takes stone `stone` (the centred top-down grasp) and holds it
-/// in its carry pose for SimulationConfig::carry_time (the sweeps see the arm with it); then it is
+/// in its carry pose for SimulationConfig::held_time (the sweeps see the arm with it); then it is
 /// put down shifted by `shift` [m] and turned by `turn_deg` about the vertical through its
 /// centroid, drop_height above the terrain, and the site settles in the physics.
 struct StoneMove {
@@ -149,7 +151,9 @@ struct StoneMove {
 };
 
 /// InputError naming the move: a stone the site lacks, non-finite values, a move starting before
-/// the previous one has put its stone down, or ending after the run. ConfigError for carry_time <= 0.
+/// the run or within one LiDAR revolution after the previous one has put its stone down, or
+/// ending after the run. ConfigError when there are moves and held_time is not longer than one
+/// revolution.
 void validate_moves(const std::vector<StoneMove>& moves, std::size_t stones, double duration,
                     const SimulationConfig& config);
 
@@ -168,12 +172,13 @@ class MoveScript {
  public:
   MoveScript(std::vector<StoneMove> moves, std::size_t stones);
   void advance(SimulatedWorld& world, double t, const SimulationConfig& config);
+  /// Time of the next pick-up or put-down (+inf when none is left).
+  [[nodiscard]] double next_event(const SimulationConfig& config) const;
   [[nodiscard]] const std::vector<TruthSegment>& segments() const { return segments_; }
   /// truth/segments.json: every segment with its end (the next one's start, or `duration`).
   [[nodiscard]] nlohmann::json to_json(double duration) const;
 
  private:
-  [[nodiscard]] double next_event(const SimulationConfig& config) const;
   std::vector<StoneMove> moves_;
   std::size_t next_ = 0;  // event 2i picks move i's stone up, 2i + 1 puts it down
   std::vector<TruthSegment> segments_;
