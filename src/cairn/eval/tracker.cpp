@@ -264,9 +264,10 @@ long Tracker::scan_while_carrying(const Tracked& tr, const Isometry3d& T_world_G
   const sim::Terrain& ground = world.site.terrain;
   const std::size_t floating_before = floating(before, *truth_now, ground, E, cfg_.score_near, cfg_.floating_height);
   sim::hold_stone(world, std::size_t(tr.stone), T_world_G, t_hold, machine_.config());
-  const auto let_go = [&] {
-    machine_.mapper().detach(t_to);
-    (void)sim::release_stone(world, t_to, machine_.config());
+  const auto let_go = [&] {  // after the last joint reading of the carry, too
+    const double t = std::max(t_to, std::nextafter(machine_.joints_fed_until(), INFINITY));
+    machine_.mapper().detach(t);
+    (void)sim::release_stone(world, t, machine_.config());
   };
   try {
     if (cfg_.filter_carried) {

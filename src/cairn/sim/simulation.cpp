@@ -474,14 +474,17 @@ void validate_moves(const std::vector<StoneMove>& moves, std::size_t stones, dou
     const std::string name = "move " + std::to_string(i + 1);
     if (!std::isfinite(m.time) || !m.shift.allFinite() || !std::isfinite(m.turn_deg))
       throw InputError(name + ": non-finite time, shift or turn");
-    if (m.stone >= stones) throw InputError(name + ": no stone " + std::to_string(m.stone) + " (the site has " + std::to_string(stones) + ")");
+    if (m.stone >= stones)
+      throw InputError(name + ": no stone " + std::to_string(m.stone) + " (the site has " + std::to_string(stones) + ")");
     if (m.time < 0.0) throw InputError(name + ": starts before the run (" + std::to_string(m.time) + " s)");
     if (!(m.time > free_from + period))
-      throw InputError(name + ": starts at " + std::to_string(m.time) + " s, less than one LiDAR revolution after the previous move ends (" +
-                       std::to_string(free_from) + " s)");
+      throw InputError(name + ": starts at " + std::to_string(m.time) +
+                       " s, less than one LiDAR revolution after the previous move ends (" + std::to_string(free_from) +
+                       " s)");
     free_from = m.time + config.held_time;
     if (free_from > duration)
-      throw InputError(name + ": ends at " + std::to_string(free_from) + " s, after the run (" + std::to_string(duration) + " s)");
+      throw InputError(name + ": ends at " + std::to_string(free_from) + " s, after the run (" +
+                       std::to_string(duration) + " s)");
   }
 }
 
