@@ -100,6 +100,7 @@ SimulationConfig scenario_config(const std::string& name, const fs::path& real_m
   c.site.stones.keep_out_x = kBaseX;
   c.site.stones.keep_out_radius = kKeepOutRadius;
   c.site.stones.settle = true;
+  c.settle_in_physics = true;  // the world at rest before anything is sensed (issue #15 item 1)
   c.excavator.base_x = kBaseX;
   c.drone.extent_x = c.drone.extent_y = kDroneExtent;
   std::vector<std::string> real = real_mesh_files(real_mesh_dir);

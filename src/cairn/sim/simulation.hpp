@@ -39,9 +39,9 @@ struct SimulationConfig {
   /// Settle the generated site in the physics before anything is sensed (settle_site, stones
   /// generated resting on the ground), so the sensors, the truth files and every later physics
   /// scene start from one world at rest (every generated site of seeds 1-50 of each scenario
-  /// does: docs/simulator-physics.md). Off by default for `cairn simulate` until the perception
-  /// figures measured on its sites are re-measured on settled ones (issue #15); the tracked
-  /// experiments and `cairn grasp-trial` settle.
+  /// does: docs/simulator-physics.md). On in every scenario (scenario_config: `cairn simulate`,
+  /// the experiments, `cairn grasp-trial`); off for a hand-built configuration, whose site is
+  /// the generator's (placed, optionally tipped onto its support: SiteConfig::stones.settle).
   bool settle_in_physics = false;
   double terrain_mesh_spacing = 0.05;  // [m] triangulation of the terrain for ray casting
   bool with_drone = true;             // fly the drone survey
