@@ -188,6 +188,23 @@ TEST(PileSegmentation, MostStonesOfAPileAreSingleSegments) {
   EXPECT_GE(double(single), 0.9 * double(stones));
 }
 
+/// Where stone k's points went: each segment's share of them and what the rest of that segment is.
+void print_shares(int k, const std::vector<std::int32_t>& labels, const std::vector<std::int32_t>& truth) {
+  std::map<std::int32_t, std::size_t> mine;
+  std::map<std::int32_t, std::map<std::int32_t, std::size_t>> content;  // segment -> truth -> points
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    content[labels[i]][truth[i]]++;
+    if (truth[i] == k) ++mine[labels[i]], ++total;
+  }
+  for (const auto& [segment, count] : mine) {
+    if (count * 20 < total) continue;
+    std::printf("  stone %d: %.1f %% in segment %d, which holds", k, 100.0 * double(count) / double(total), segment);
+    for (const auto& [t, c] : content[segment]) std::printf(" %zu of %d", c, t);
+    std::printf("\n");
+  }
+}
+
 // Issue #21: spread sites stay as they were — no stone split, no stones merged.
 TEST(PileSegmentation, SpreadSitesAreNotSplit) {
   for (const std::string scenario : {"exp1", "exp2"})
@@ -207,6 +224,7 @@ TEST(PileSegmentation, SpreadSitesAreNotSplit) {
         const ObjectScore& o = e.objects[std::size_t(k)];
         EXPECT_EQ(o.significant_segments, 1u) << scenario << " seed " << seed << ": stone " << k << " ("
                                               << p.site.stones[std::size_t(k)].source << ") is split";
+        if (o.significant_segments > 1) print_shares(k, r.labels, p.sampled.truth);
       }
       EXPECT_GE(e.found(), before.found()) << scenario << " seed " << seed;
       if (e.found() < before.found())
