@@ -53,9 +53,9 @@ void BM_Cairn_Segment(benchmark::State& state) {
 /// same sampling and voxelisation: the splitting of touching stones at work.
 const PointCloud& pile_map() {
   static const PointCloud map = [] {
-    sim::SiteConfig c = sim::scenario_config("pile", sim::default_real_mesh_dir()).site;
-    c.terrain.size_x = c.terrain.size_y = 12.0;
-    PointCloud cloud = sim::sample_site(sim::generate_site(c, 1), {}, 1).cloud;
+    sim::SimulationConfig c = sim::scenario_config("pile", sim::default_real_mesh_dir());
+    c.site.terrain.size_x = c.site.terrain.size_y = 12.0;
+    PointCloud cloud = sim::sample_site(sim::make_site(c, 1), {}, 1).cloud;  // settled, as every scenario
     return voxel_downsample(cloud, {});
   }();
   return map;

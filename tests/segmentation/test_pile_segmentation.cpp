@@ -31,7 +31,9 @@ struct Ball {
 /// Flat ground at z = 0 plus the visible surface (above the ground, outside the other balls) of
 /// each ball, σ = 1 cm noise; truth = ball index, -1 ground. Balls sunk ~10 cm into the ground,
 /// as the simulator's stones: a ball touching the ground at one point has a rim lower than the
-/// ground margin d_plane, which no segmentation can tell from the ground.
+/// ground margin d_plane, which no segmentation can tell from the ground. (The simulator's
+/// scenario stones rest on the ground since they are settled in the physics; the unsettled
+/// generator sinks them by embed_depth.)
 sim::SampledSite balls_on_ground(const std::vector<Ball>& balls, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<float> noise(0.0f, 0.01f);
@@ -237,16 +239,16 @@ TEST(PileSegmentation, SpreadSitesAreNotSplit) {
     }
 }
 
-// Issue #21: a single stone is never split because its concavities are no seam. The evidence
-// of every touching pair of fine hills (both large enough to be a part) on pile and spread
-// sites, by the truth: hills of one stone (bumps and dips) against hills of two stones (seams).
-// Prints the margin.
+// Issue #21: a single stone is never split. The evidence of every touching pair of fine hills
+// (both large enough to be a part) on pile and spread sites, by the truth: hills of one stone
+// (bumps and dips) against hills of two stones (seams). Prints the margin; a one-stone pair that
+// looks like a seam must end in one segment.
 TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
   const SplitConfig c;
   struct Pair {
     HillContacts::Contact k;
     std::string where;  // scenario, seed and stone(s), for the printout
-    bool split = false;  // the stone ends in more than one segment (segment(): its parts merged or not)
+    bool split = false;  // the two hills end in different segments of segment()
   };
   std::vector<Pair> same, seams;
   const auto majority = [](const std::vector<std::uint32_t>& hill, const std::vector<std::int32_t>& truth) {
@@ -259,8 +261,7 @@ TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
       const std::optional<PileSite> site = try_pile_site(seed, scenario);
       if (!site) continue;
       const PileSite& p = *site;
-      const SegmentationScore final_score =
-          score_segmentation(segment(p.sampled.cloud, {}).labels, p.sampled.truth, int(p.site.stones.size()));
+      const std::vector<std::int32_t> final_labels = segment(p.sampled.cloud, {}).labels;
       for (const HillContacts& cluster : split_evidence(p.sampled.cloud, {}))
         for (const auto& k : cluster.contacts) {
           // hills smaller than a part are merged into a neighbour whatever their contact
@@ -270,7 +271,7 @@ TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
           const std::int32_t b = majority(cluster.hills[k.b], p.sampled.truth);
           const std::string where = scenario + " seed " + std::to_string(seed) + " stone " + std::to_string(a) +
                                     (a == b ? "" : "/" + std::to_string(b));
-          const bool split = a >= 0 && final_score.objects[std::size_t(a)].significant_segments > 1;
+          const bool split = majority(cluster.hills[k.a], final_labels) != majority(cluster.hills[k.b], final_labels);
           if (a >= 0 && b >= 0) (a == b ? same : seams).push_back({k, where, split});
         }
     }
@@ -285,7 +286,7 @@ TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
     false_seams += is_seam(k);
     if (!is_seam(k)) continue;
     std::printf("one stone's hills taken for two (%s): depth %.3f m, crease share %.2f, %zu contact edges; %s\n",
-                where.c_str(), k.depth, k.crease_share, k.edges, split ? "the stone ends split" : "its parts merged again");
+                where.c_str(), k.depth, k.crease_share, k.edges, split ? "the two end in two segments" : "merged again");
     // The fine level is evidence, not the answer: such a pair must not split its stone in the end.
     EXPECT_FALSE(split) << where;
   }
@@ -300,9 +301,10 @@ TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
               "median %.2f, %zu of them a seam; thresholds: crease share %.2f, depth %.2f m\n",
               same.size(), same_share, same_depth, seams.size(), seam_share[seam_share.size() / 2], found,
               c.min_crease_share, c.min_seam_depth);
-  // The margin at the fine level is thin, not a hard gap (docs/segmentation.md: 2 of 183
-  // one-stone pairs on fresh seeds before the sites were settled in the physics, 1 of 9 here
-  // since): at most one such pair on these sites, and none splits its stone (above).
-  EXPECT_LE(false_seams, 1u);
+  // The margin at the fine level is thin, not a hard gap (docs/segmentation.md: on fresh seeds 2
+  // of 183 one-stone pairs before the sites were settled in the physics, 1 of 170 since; on these
+  // seeds 1 of 9 since): at most 2 % of the one-stone pairs (one on the default seeds), and none
+  // ends in two segments (above).
+  EXPECT_LE(double(false_seams), std::max(1.0, 0.02 * double(same.size())));
   EXPECT_GT(seam_share[seam_share.size() / 2], 2 * c.min_crease_share) << "the seams' median share";
 }

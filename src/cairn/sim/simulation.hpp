@@ -42,6 +42,7 @@ struct SimulationConfig {
   /// does: docs/simulator-physics.md). On in every scenario (scenario_config: `cairn simulate`,
   /// the experiments, `cairn grasp-trial`); off for a hand-built configuration, whose site is
   /// the generator's (placed, optionally tipped onto its support: SiteConfig::stones.settle).
+  /// A settled site ignores site.stones.embed_depth (generated resting on the ground: make_site).
   bool settle_in_physics = false;
   double terrain_mesh_spacing = 0.05;  // [m] triangulation of the terrain for ray casting
   bool with_drone = true;             // fly the drone survey
