@@ -59,8 +59,8 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   if (!a.config_file.empty()) config::load_yaml_file(cfg, a.config_file);
   for (const auto& o : a.overrides) config::apply_override(cfg, o);
   // "default": the procedural site of SiteConfig{}; otherwise the site of a simulator scenario
-  // (the same stones `cairn simulate --scenario NAME --seed N` writes, unless --no-settle). Either
-  // way settled in the physics first (the world at rest the sensors see), unless --no-settle.
+  // (the same stones `cairn simulate --scenario NAME --seed N` writes). Either way settled in the
+  // physics first (the world at rest the sensors see); --no-settle keeps the generator's placement.
   sim::SimulationConfig sim_cfg;
   if (a.scenario != "default") {
     sim_cfg = sim::scenario_config(a.scenario, sim::default_real_mesh_dir());
