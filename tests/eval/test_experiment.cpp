@@ -97,6 +97,55 @@ TEST(TargetCheck, TheEstimatedCentreIsCarriedByTheStoredMotionAndALostObjectIsNe
   EXPECT_FALSE(seen_at_target(ObjectStatus::lost, moved, centre, landed, c));
 }
 
+// Sec. 6.1's places on exp1's layout (swing axis at x = -6 facing +x, R_map = 10 m): the row
+// 8 m out holds the places whose centre lies in the map (y = 0, +-1.7, +-3.4, +-5.1 — not the
+// +-6.8 and +-8.5 the row offered before, 10.5 and 11.7 m from the axis, which the rescans never
+// saw: stones placed there were lost), then the rows 1.7 m nearer, down to row_min_distance.
+TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
+  ExperimentConfig c;
+  const Eigen::Vector2d axis(-6.0, 0.0);
+  const double R = c.tracking.mapping.local_map.R_map;
+  const std::vector<Eigen::Vector2d> places = target_places(axis, 0.0, c.row_distance, 7, c);
+  ASSERT_GE(places.size(), 7u);
+  const std::vector<double> first_row = {0.0, -1.7, 1.7, -3.4, 3.4, -5.1, 5.1};
+  for (std::size_t i = 0; i < first_row.size(); ++i) {
+    EXPECT_NEAR(places[i].x(), 2.0, 1e-9) << i;
+    EXPECT_NEAR(places[i].y(), first_row[i], 1e-9) << i;
+  }
+  std::set<long> rows;
+  for (std::size_t i = 0; i < places.size(); ++i) {
+    EXPECT_LE((places[i] - axis).norm(), R + 1e-9) << i;
+    rows.insert(std::lround(10.0 * (places[i].x() - axis.x())));
+    if (i > 0) {
+      EXPECT_LE(places[i].x(), places[i - 1].x() + 1e-9) << "rows nearer the machine come after";
+    }
+    for (std::size_t j = 0; j < i; ++j) EXPECT_GE((places[i] - places[j]).norm(), c.row_spacing - 1e-9);
+  }
+  EXPECT_EQ(rows, (std::set<long>{80, 63, 46}));  // 2.9 m < row_min_distance: no fourth row
+  // A stone's footprint must fit too: 0.6 m half-size and 0.2 m clearance fit at y = 3.4 (8.7 m
+  // from the axis), not at y = 5.1 (9.5 m).
+  EXPECT_TRUE(place_in_map({2.0, 3.4}, 0.6, axis, c));
+  EXPECT_FALSE(place_in_map({2.0, 5.1}, 0.6, axis, c));
+  // An even count centres the row; a turned heading turns it about the axis.
+  const auto even = target_places(axis, 0.0, c.row_distance, 6, c);
+  EXPECT_NEAR(even[0].y(), -0.85, 1e-9);
+  const auto turned = target_places(axis, std::numbers::pi / 2, c.row_distance, 7, c);
+  ASSERT_EQ(turned.size(), places.size());
+  for (std::size_t i = 0; i < places.size(); ++i) {
+    EXPECT_NEAR(turned[i].x() - axis.x(), -(places[i].y() - axis.y()), 1e-9);
+    EXPECT_NEAR(turned[i].y() - axis.y(), places[i].x() - axis.x(), 1e-9);
+  }
+  // A row farther out than the map offers nothing of its own: the nearer rows still do.
+  EXPECT_FALSE(target_places(axis, 0.0, 11.0, 7, c).empty());
+  c.row_min_distance = 12.0;
+  EXPECT_TRUE(target_places(axis, 0.0, 11.0, 7, c).empty());
+  for (const double bad : {0.0, -1.0, std::nan("")}) {
+    ExperimentConfig b;
+    b.row_min_distance = bad;
+    EXPECT_THROW((void)run_experiment(b), ConfigError) << bad;
+  }
+}
+
 std::filesystem::path fresh_db(const std::string& name) {
   const auto f = std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()) + ".db");
   for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(f.string() + side);

@@ -80,6 +80,9 @@ void validate(const ExperimentConfig& c) {
   if (!(c.row_spacing > 0) || !(c.lift_height > 0) || !(c.place_depth >= 0) || !(c.ground_radius > 0) ||
       !std::isfinite(c.ground_radius))
     throw ConfigError("experiment: row_spacing, lift_height, ground_radius > 0 (finite) and place_depth >= 0 required");
+  if (!(c.row_distance > 0) || !(c.row_distance_even > 0) || !(c.row_min_distance > 0) ||
+      !std::isfinite(c.row_distance + c.row_distance_even + c.row_min_distance))
+    throw ConfigError("experiment: row_distance, row_distance_even and row_min_distance must be > 0 and finite");
   const SlipDetectionConfig& d = c.detection;
   if (!(d.min_load >= 0) || !(d.load_drop > 0 && d.load_drop < 1) || !(d.jaw_travel > 0) || !(d.target_tolerance > 0))
     throw ConfigError("experiment detection: min_load >= 0, load_drop in (0, 1), positive jaw_travel and target_tolerance");
@@ -300,24 +303,18 @@ std::vector<Vec2d> Experiment::row(int round) const {
   const ScanningMachine& m = tracker_.machine();
   const double heading = m.config().excavator.base_yaw_deg / kDegPerRad;
   const double d = round % 2 == 1 ? c_.row_distance : c_.row_distance_even;
-  const int n = int(tracker_.machine().world().site.stones.size());
-  // The row's places from its middle outwards: n targets, then as many spares.
-  std::vector<Vec2d> places;
-  for (int i = 0; i < 2 * n; ++i) {
-    const double offset = (i % 2 == 0 ? 1.0 : -1.0) * std::ceil(i / 2.0) * c_.row_spacing;
-    const Vec2d local(d, offset - (n % 2 == 0 ? 0.5 * c_.row_spacing : 0.0));
-    places.push_back(m.base().head<2>() + Eigen::Rotation2Dd(heading) * local);
-  }
-  return places;
+  return target_places(m.base().head<2>(), heading, d, int(m.world().site.stones.size()), c_);
 }
 
-/// The first unused place of the round's row no other object comes near (the database's view).
+/// The first unused place of the round's rows inside the map that no other object comes near
+/// (the database's view).
 std::optional<Vec2d> Experiment::free_target(int round, const ObjectRecord& obj, std::vector<bool>& used) const {
   const std::vector<Vec2d> places = row(round);
   const double half = 0.5 * xy_bounds(obj.cloud).diagonal().norm();
   const std::vector<ObjectRecord> others = tracker_.db().objects();
+  const Vec2d axis = tracker_.machine().base().head<2>();
   for (std::size_t i = 0; i < places.size(); ++i) {
-    if (used[i]) continue;
+    if (used[i] || !place_in_map(places[i], half, axis, c_)) continue;
     bool clear = true;
     for (const ObjectRecord& o : others) {
       if (o.id == obj.id || o.status == ObjectStatus::lost) continue;
@@ -825,6 +822,30 @@ void Experiment::finish(double total_ms) {
 }
 
 }  // namespace
+
+std::vector<Vec2d> target_places(const Vec2d& axis, double heading, double distance, int count,
+                                 const ExperimentConfig& c) {
+  const double R = c.tracking.mapping.local_map.R_map;
+  const double shift = count % 2 == 0 ? 0.5 * c.row_spacing : 0.0;  // an even row is centred too
+  const Eigen::Rotation2Dd turn(heading);
+  std::vector<Vec2d> places;
+  for (int row = 0;; ++row) {
+    const double d = distance - row * c.row_spacing;
+    if (row > 0 && d < c.row_min_distance - 1e-9) break;
+    // From the middle outwards: 0, +1, -1, +2, -2, ... spacings, until both ends leave the map.
+    for (int i = 0;; ++i) {
+      const double offset = (i % 2 == 0 ? 1.0 : -1.0) * std::ceil(i / 2.0) * c.row_spacing - shift;
+      if (std::abs(offset) - c.row_spacing > R) break;
+      const Vec2d local(d, offset);
+      if (local.norm() <= R) places.push_back(axis + turn * local);
+    }
+  }
+  return places;
+}
+
+bool place_in_map(const Vec2d& place, double half, const Vec2d& axis, const ExperimentConfig& c) {
+  return (place - axis).norm() + half + c.target_clearance <= c.tracking.mapping.local_map.R_map;
+}
 
 ExperimentResult run_experiment(const ExperimentConfig& config, const ExperimentProgress& progress) {
   validate(config);

@@ -65,12 +65,16 @@ struct ExperimentConfig {
   double registration_period = 5.0;   // [s] Sec. 6.2: registration triggered every 5 s
   double registration_timeout = 60.0; // [s] of scanning without an accepted registration: stop
   // Targets (Sec. 6.1, equally spaced places): a row across the heading, the base course of a
-  // wall; odd rounds at row_distance from the swing axis (beyond the stones of exp1/exp2), even
-  // rounds at row_distance_even (where they were); a target another object blocks moves on to
-  // the row's next spare place.
+  // wall; odd rounds at row_distance from the swing axis (beyond exp2's stones; through the
+  // middle of exp1's), even rounds at row_distance_even (where they were); a target another
+  // object blocks moves on to the row's next spare place, then to the rows row_spacing nearer
+  // the machine (down to row_min_distance). Only places inside the robot-centric map (R_map,
+  // Table 3) with the stone's footprint and target_clearance: a stone set down beyond it is
+  // never seen again, so the rescan could not check it (target_places, free_target).
   double row_distance = 8.0;       // [m]
   double row_distance_even = 4.5;  // [m]
   double row_spacing = 1.7;        // [m] between targets (the stones are up to ~1.3 m wide)
+  double row_min_distance = 4.0;   // [m] nearest row to the swing axis (the chassis' keep-out: 3 m)
   double target_clearance = 0.2;   // [m] gap kept between a target's stone and other objects
   double lift_height = 1.6;        // [m] carried above the grasp (clears the other stones)
   double place_depth = 0.1;        // [m] commanded below the expected contact: lowering stops on it
@@ -120,7 +124,8 @@ struct ExperimentConfig {
     v("filter_carried", tracking.filter_carried, "attach the carried object to the self-filter");
     v("row_distance", row_distance, "[m] odd rounds: the row of targets this far from the swing axis");
     v("row_distance_even", row_distance_even, "[m] even rounds: the row this far");
-    v("row_spacing", row_spacing, "[m] between targets");
+    v("row_spacing", row_spacing, "[m] between targets (and between the rows)");
+    v("row_min_distance", row_min_distance, "[m] the nearest row of spare places to the swing axis");
     v("target_clearance", target_clearance, "[m] gap between a target's stone and other objects");
     v("lift_height", lift_height, "[m] carried this high above the grasp");
     v("place_depth", place_depth, "[m] commanded below the expected contact (lowering stops on contact)");
@@ -269,6 +274,18 @@ struct ExperimentResult {
   int found_again = 0;           // objects the rescan's re-alignment lost, found by re-segmenting the map
   ExperimentScene scene;  // for the report (not in the JSON)
 };
+
+/// Sec. 6.1's equally spaced places, in the order they are offered: the row at `distance` from
+/// the swing axis `axis` across `heading` (the row of `count` targets, centred), from its middle
+/// outwards, then the rows row_spacing nearer the machine down to row_min_distance. Only places
+/// within R_map of the axis (the robot-centric map, Table 3; the spares beyond it dropped).
+[[nodiscard]] std::vector<Eigen::Vector2d> target_places(const Eigen::Vector2d& axis, double heading, double distance,
+                                                         int count, const ExperimentConfig& c);
+
+/// True when a stone `half` wide (half its xy diagonal) set down at `place` lies inside the
+/// robot-centric map with target_clearance to spare: the rescan can see and check it.
+[[nodiscard]] bool place_in_map(const Eigen::Vector2d& place, double half, const Eigen::Vector2d& axis,
+                                const ExperimentConfig& c);
 
 using ExperimentProgress = std::function<void(const std::string&, int, int)>;
 
