@@ -312,6 +312,7 @@ nlohmann::json to_json(const GraspTrialsResult& r) {
                       {"success", t.success()}, {"failure_reasons", t.planned ? t.result.failure_reasons
                                                                               : std::vector<std::string>{"no_grasp"}},
                       {"result", sim::to_json(t.result)}, {"force_closure_grasps", t.counts.force_closure},
+                      {"balanced_grasps", t.counts.balanced}, {"robust_grasps", t.counts.robust},
                       {"costs", {{"align_rad", t.best.costs.align}, {"enclose_m", t.best.costs.enclose},
                                  {"dist_m", t.best.costs.dist}}},
                       {"robustness", t.best.robustness}, {"contact_height_m", t.best.contact_height},
