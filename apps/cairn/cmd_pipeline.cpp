@@ -14,14 +14,23 @@
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/io/trajectory.hpp"
+#include "cairn/eval/registration_scoring.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/segmentation/evaluation.hpp"
 #include "cairn/segmentation/output.hpp"
 #include "cairn/sim/simulation.hpp"
 #include "commands.hpp"
-#include "sim_registration.hpp"
 
 namespace cairn::app {
+using eval::MetricDrone;
+using eval::load_metric_drone;
+using eval::RegistrationTruth;
+using eval::load_registration_truth;
+using eval::ScoredRegistration;
+using eval::score_registration;
+using eval::MapRelativeError;
+using eval::error_against_map;
+
 namespace {
 
 constexpr double kTopViewPixelsPerMetre = 40.0;

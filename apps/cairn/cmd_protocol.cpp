@@ -13,12 +13,21 @@
 #include "app_config.hpp"
 #include "cairn/core/image.hpp"
 #include "cairn/core/io/run_dir.hpp"
+#include "cairn/eval/registration_scoring.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/sim/simulation.hpp"
 #include "commands.hpp"
-#include "sim_registration.hpp"
 
 namespace cairn::app {
+using eval::MetricDrone;
+using eval::load_metric_drone;
+using eval::RegistrationTruth;
+using eval::load_registration_truth;
+using eval::ScoredRegistration;
+using eval::score_registration;
+using eval::MapRelativeError;
+using eval::error_against_map;
+
 namespace {
 
 // A success whose error exceeds these is a false positive (the acceptance test let a wrong

@@ -269,8 +269,8 @@ TEST(PileSegmentation, ConcavitiesOfOneStoneAreNoSeam) {
           if (cluster.hills[k.a].size() < min_points || cluster.hills[k.b].size() < min_points) continue;
           const std::int32_t a = majority(cluster.hills[k.a], p.sampled.truth);
           const std::int32_t b = majority(cluster.hills[k.b], p.sampled.truth);
-          const std::string where = scenario + " seed " + std::to_string(seed) + " stone " + std::to_string(a) +
-                                    (a == b ? "" : "/" + std::to_string(b));
+          std::string where = scenario + " seed " + std::to_string(seed) + " stone " + std::to_string(a);
+          if (a != b) where.append("/").append(std::to_string(b));
           const bool split = majority(cluster.hills[k.a], final_labels) != majority(cluster.hills[k.b], final_labels);
           if (a >= 0 && b >= 0) (a == b ? same : seams).push_back({k, where, split});
         }

@@ -801,3 +801,30 @@ TEST(PersistentWorld, ACarriedStoneIsPutDownAndComesToRest) {
 }
 }  // namespace
 }  // namespace cairn::sim
+
+namespace cairn::sim {
+namespace {
+// The one reader of a run's drone truth (truth/drone.json): the similarity it holds, exactly;
+// a missing, malformed or incomplete file is an InputError naming the file.
+TEST(RunTruth, DroneTruthReadsBackOrNamesTheFile) {
+  const auto run = test::temp_dir("drone_truth");
+  const auto file = run / "truth" / "drone.json";
+  EXPECT_THROW((void)read_drone_truth(run), InputError);
+  std::filesystem::create_directories(run / "truth");
+  const Similarity T{.scale = 2.5, .rotation = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix(),
+                     .translation = Eigen::Vector3d(1, -2, 3)};
+  std::ofstream(file) << nlohmann::json{{"T_map_drone", matrix_to_json(T.matrix())}}.dump();
+  const Similarity back = read_drone_truth(run);
+  EXPECT_LT((back.matrix() - T.matrix()).cwiseAbs().maxCoeff(), 1e-12);
+  for (const std::string bad : {"{\"T_map_drone\": [1, 2]", "{}", "not json"}) {
+    std::ofstream(file) << bad;
+    try {
+      (void)read_drone_truth(run);
+      ADD_FAILURE() << bad;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("drone.json"), std::string::npos) << e.what();
+    }
+  }
+}
+}  // namespace
+}  // namespace cairn::sim

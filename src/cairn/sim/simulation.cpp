@@ -72,12 +72,20 @@ std::string sweep_file(const std::string& sensor, int index) {
   return "scans/" + sensor + "/" + name;
 }
 
-Similarity read_drone_truth(const fs::path& run) {
-  std::ifstream in(run / "truth" / "drone.json");
-  return Similarity::from_matrix(matrix_from_json(nlohmann::json::parse(in).at("T_map_drone")));
-}
-
 }  // namespace
+
+Similarity read_drone_truth(const fs::path& run) {
+  const fs::path file = run / "truth" / "drone.json";
+  std::ifstream in(file);
+  if (!in) throw InputError("cannot read " + file.string());
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    if (!j.contains("T_map_drone")) throw InputError(file.string() + " has no T_map_drone");
+    return Similarity::from_matrix(matrix_from_json(j.at("T_map_drone")));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(file.string() + " is not a drone truth file: " + e.what());
+  }
+}
 
 std::vector<std::string> scenario_names() { return {"exp1", "exp2", "pile"}; }
 

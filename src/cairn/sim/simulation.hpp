@@ -103,6 +103,10 @@ using Progress = std::function<void(const std::string&, std::size_t, std::size_t
 /// `settle` when given). Deterministic for a seed.
 Site make_site(const SimulationConfig& config, std::uint64_t seed, SiteSettleResult* settle = nullptr);
 
+/// The drone survey's true map-from-SfM similarity of a run directory (truth/drone.json,
+/// "T_map_drone"); InputError naming the file when it is missing or malformed.
+[[nodiscard]] Similarity read_drone_truth(const std::filesystem::path& run);
+
 /// A stone in the gripper: its site mesh (world coordinates, where it lay when grasped) mapped
 /// into the gripper frame G by T_G_world, so it moves with the arm.
 struct HeldStone {

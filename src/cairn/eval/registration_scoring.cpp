@@ -1,4 +1,4 @@
-#include "sim_registration.hpp"
+#include "cairn/eval/registration_scoring.hpp"
 
 #include <fstream>
 
@@ -6,11 +6,12 @@
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/trajectory.hpp"
 #include "cairn/segmentation/evaluation.hpp"
+#include "cairn/sim/simulation.hpp"
 
-namespace cairn::app {
+namespace cairn::eval {
 namespace {
 // A merged-segment point takes the truth label of the nearest snapshot point within this distance
-// (3 cm voxels plus sensor noise); see cmd_demo.cpp.
+// (3 cm voxels plus sensor noise).
 constexpr double kTruthTransferDistance = 0.06;  // [m]
 constexpr double kSingleObjectShare = 0.95;      // a stone is single when one segment holds this share
 }  // namespace
@@ -23,17 +24,7 @@ MetricDrone load_metric_drone(const io::RunDirectory& run, const ScaleRecoveryCo
   d.scale = recover_scale(io::read_colmap_text(run.drone_sparse), io::read_tum_trajectory(run.drone_vins), config);
   d.cloud = io::load_cloud(run.drone_cloud);
   transform_cloud(d.cloud, d.scale.T_metric_sfm);
-  const std::filesystem::path truth_file = run.truth_dir() / "drone.json";
-  std::ifstream in(truth_file);
-  if (!in) throw InputError("cannot read " + truth_file.string());
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(truth_file.string() + " is not JSON: " + e.what());
-  }
-  if (!j.contains("T_map_drone")) throw InputError(truth_file.string() + " has no T_map_drone");
-  d.T_map_metric_true = Similarity::from_matrix(matrix_from_json(j["T_map_drone"])) * d.scale.T_metric_sfm.inverse();
+  d.T_map_metric_true = sim::read_drone_truth(run.root) * d.scale.T_metric_sfm.inverse();
   d.scale_error = d.T_map_metric_true.scale - 1.0;
   return d;
 }
@@ -101,4 +92,4 @@ MapRelativeError error_against_map(const Eigen::Isometry3d& T_map_source, const 
           .map_offset_m = (centre_in_map - truth.site_centre).norm()};
 }
 
-}  // namespace cairn::app
+}  // namespace cairn::eval

@@ -1,6 +1,6 @@
 #pragma once
-// Registration of a simulator run's drone cloud into a LiDAR map, scored against the run's truth:
-// shared by `cairn demo` and `cairn protocol`.
+// Registration of a simulator run's drone cloud into a LiDAR map, scored against the run's truth
+// (the paper's protocol, Sec. 6.2): shared by `cairn pipeline` and `cairn protocol`.
 #include <nlohmann/json.hpp>
 
 #include "cairn/core/io/run_dir.hpp"
@@ -8,7 +8,7 @@
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/registration/scale_recovery.hpp"
 
-namespace cairn::app {
+namespace cairn::eval {
 
 /// The drone cloud of a run, scaled into the metric (VINS) frame by scale recovery (Sec. 4.1),
 /// and the true map-from-metric similarity (truth/drone.json composed with the recovered scale).
@@ -55,4 +55,4 @@ struct MapRelativeError {
                                                  const RegistrationTruth& truth, const ObjectSurfaceTruth& true_objects,
                                                  const PointCloud& map);
 
-}  // namespace cairn::app
+}  // namespace cairn::eval
