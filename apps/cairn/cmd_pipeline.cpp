@@ -34,9 +34,6 @@ using eval::error_against_map;
 namespace {
 
 constexpr double kTopViewPixelsPerMetre = 40.0;
-// A map point takes the truth label of the nearest point of the dense labelled truth snapshot
-// within this distance (the map's 3 cm voxels plus range noise); farther points count as none.
-constexpr double kTruthTransferDistance = 0.06;  // [m]
 
 struct PipelineArgs {
   std::string out = "cairn_pipeline";
@@ -106,14 +103,14 @@ int run_pipeline(const PipelineArgs& a) {
                100 * ate_raw.ate_rmse, 100 * ate_mapped.ate_rmse, mapped.stats.nodes, map.size());
 
   // 3. Registration of the drone cloud into the map (when the run has a drone survey).
+  const RegistrationTruth reg_truth = load_registration_truth(rd, int(cfg.simulation.site.stones.count));
+  sw.lap_ms();
   nlohmann::json registration = "skipped (no drone survey)";
   PointCloud merged = map;
   if (!rd.drone_cloud.empty()) {
     spdlog::info("pipeline [3/5] registering the drone cloud into the map (scale Sec. 4.1, segments Sec. 4.4)");
     const MetricDrone drone = load_metric_drone(rd, cfg.scale);
     t.add("scale_recovery", sw.lap_ms());
-    const RegistrationTruth reg_truth = load_registration_truth(rd, int(cfg.simulation.site.stones.count));
-    sw.lap_ms();
     const GlobalRegistrationResult r = register_global(drone.cloud, map, cfg.segmentation, cfg.registration);
     t.add("registration", sw.lap_ms());
     r.timings.log("pipeline   registration:");
@@ -157,10 +154,7 @@ int run_pipeline(const PipelineArgs& a) {
   seg.timings.log("pipeline   segmentation:");
 
   spdlog::info("pipeline [5/5] scoring against ground truth and writing {}", a.out);
-  const PointCloud snapshot = io::load_cloud(rd.truth_dir() / "map_snapshot.ply");
-  const std::vector<std::int32_t> truth = transfer_labels(snapshot, merged, kTruthTransferDistance);
-  const int num_stones = int(cfg.simulation.site.stones.count);
-  const SegmentationScore score = score_segmentation(seg.labels, truth, num_stones);
+  const SegmentationScore score = eval::score_against_truth(merged, seg.labels, reg_truth);
   write_segmentation(out, merged, seg, seg.labels);
   io::write_ply(out / "map.ply", map);
   if (merged.size() != map.size()) io::write_ply(out / "merged_map.ply", merged);
@@ -177,7 +171,7 @@ int run_pipeline(const PipelineArgs& a) {
   nlohmann::json summary{{"scenario", a.scenario},
                          {"seed", a.seed},
                          {"duration_s", a.duration},
-                         {"stones", num_stones},
+                         {"stones", reg_truth.num_stones},
                          {"sweeps", s.sweeps},
                          {"lidar_points", s.points},
                          {"drone_points", s.drone_points},
@@ -197,7 +191,7 @@ int run_pipeline(const PipelineArgs& a) {
   std::ofstream(out / "summary.json") << summary.dump(2) << "\n";
   std::cout << summary.dump(2) << std::endl;
   spdlog::info("pipeline: {} of {} stones found as single complete segments, {} terrain segments; picture: {}",
-               score.found(), num_stones, score.terrain_segments, (out / "top_view.png").string());
+               score.found(), reg_truth.num_stones, score.terrain_segments, (out / "top_view.png").string());
   return kExitOk;
 }
 

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <set>
 
@@ -128,7 +129,11 @@ TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
   EXPECT_FALSE(place_in_map({2.0, 5.1}, 0.6, axis, c));
   // An even count centres the row; a turned heading turns it about the axis.
   const auto even = target_places(axis, 0.0, c.row_distance, 6, c);
-  EXPECT_NEAR(even[0].y(), -0.85, 1e-9);
+  ASSERT_GE(even.size(), 4u);
+  EXPECT_NEAR(even[0].y(), 0.85, 1e-9);
+  EXPECT_NEAR(even[1].y(), -0.85, 1e-9);
+  EXPECT_NEAR(even[2].y() + even[3].y(), 0.0, 1e-9);
+  EXPECT_NEAR(std::abs(even[2].y()), 2.55, 1e-9);
   const auto turned = target_places(axis, std::numbers::pi / 2, c.row_distance, 7, c);
   ASSERT_EQ(turned.size(), places.size());
   for (std::size_t i = 0; i < places.size(); ++i) {
@@ -139,10 +144,17 @@ TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
   EXPECT_FALSE(target_places(axis, 0.0, 11.0, 7, c).empty());
   c.row_min_distance = 12.0;
   EXPECT_TRUE(target_places(axis, 0.0, 11.0, 7, c).empty());
-  for (const double bad : {0.0, -1.0, std::nan("")}) {
+  for (const double bad : {0.0, -1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
     ExperimentConfig b;
     b.row_min_distance = bad;
     EXPECT_THROW((void)run_experiment(b), ConfigError) << bad;
+    EXPECT_THROW((void)target_places(axis, 0.0, 8.0, 7, b), ConfigError) << bad;
+    b = ExperimentConfig{};
+    b.row_spacing = bad;
+    EXPECT_THROW((void)target_places(axis, 0.0, 8.0, 7, b), ConfigError) << bad;
+    b = ExperimentConfig{};
+    b.tracking.mapping.local_map.R_map = bad;
+    EXPECT_THROW((void)target_places(axis, 0.0, 8.0, 7, b), ConfigError) << bad;
   }
 }
 

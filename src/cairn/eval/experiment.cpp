@@ -81,8 +81,10 @@ void validate(const ExperimentConfig& c) {
       !std::isfinite(c.ground_radius))
     throw ConfigError("experiment: row_spacing, lift_height, ground_radius > 0 (finite) and place_depth >= 0 required");
   if (!(c.row_distance > 0) || !(c.row_distance_even > 0) || !(c.row_min_distance > 0) ||
-      !std::isfinite(c.row_distance + c.row_distance_even + c.row_min_distance))
-    throw ConfigError("experiment: row_distance, row_distance_even and row_min_distance must be > 0 and finite");
+      !std::isfinite(c.row_distance + c.row_distance_even + c.row_min_distance + c.row_spacing) ||
+      !std::isfinite(c.tracking.mapping.local_map.R_map))
+    throw ConfigError("experiment: row_distance, row_distance_even, row_min_distance, row_spacing and R_map must be "
+                      "> 0 and finite");
   const SlipDetectionConfig& d = c.detection;
   if (!(d.min_load >= 0) || !(d.load_drop > 0 && d.load_drop < 1) || !(d.jaw_travel > 0) || !(d.target_tolerance > 0))
     throw ConfigError("experiment detection: min_load >= 0, load_drop in (0, 1), positive jaw_travel and target_tolerance");
@@ -620,7 +622,7 @@ void Experiment::move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& 
     char extent[96];
     std::snprintf(extent, sizeof extent, " (the object is %.2f m across)",
                   xy_bounds(tracker_.db().object(tr.object)->cloud).diagonal().norm());
-    out.notes.push_back(name + ": no free place in the row" + extent);
+    out.notes.push_back(name + ": no free place in the rows" + extent);
     return;
   }
   targets_[tr.stone] = *target;
@@ -826,15 +828,19 @@ void Experiment::finish(double total_ms) {
 std::vector<Vec2d> target_places(const Vec2d& axis, double heading, double distance, int count,
                                  const ExperimentConfig& c) {
   const double R = c.tracking.mapping.local_map.R_map;
+  const auto positive = [](double v) { return v > 0 && std::isfinite(v); };
+  if (!positive(R) || !positive(c.row_spacing) || !positive(c.row_min_distance) || !std::isfinite(distance))
+    throw ConfigError("target_places: R_map, row_spacing and row_min_distance must be > 0 and finite");
   const double shift = count % 2 == 0 ? 0.5 * c.row_spacing : 0.0;  // an even row is centred too
   const Eigen::Rotation2Dd turn(heading);
   std::vector<Vec2d> places;
   for (int row = 0;; ++row) {
     const double d = distance - row * c.row_spacing;
     if (row > 0 && d < c.row_min_distance - 1e-9) break;
-    // From the middle outwards: 0, +1, -1, +2, -2, ... spacings, until both ends leave the map.
+    // From the middle outwards: 0, -1, +1, -2, +2, ... spacings (even rows: -1/2 + 1/2, then
+    // -3/2, +3/2, ...), until both ends leave the map.
     for (int i = 0;; ++i) {
-      const double offset = (i % 2 == 0 ? 1.0 : -1.0) * std::ceil(i / 2.0) * c.row_spacing - shift;
+      const double offset = (i % 2 == 0 ? 1.0 : -1.0) * std::ceil(i / 2.0) * c.row_spacing + shift;
       if (std::abs(offset) - c.row_spacing > R) break;
       const Vec2d local(d, offset);
       if (local.norm() <= R) places.push_back(axis + turn * local);

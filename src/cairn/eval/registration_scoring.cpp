@@ -1,7 +1,5 @@
 #include "cairn/eval/registration_scoring.hpp"
 
-#include <fstream>
-
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/trajectory.hpp"
@@ -9,12 +7,6 @@
 #include "cairn/sim/simulation.hpp"
 
 namespace cairn::eval {
-namespace {
-// A merged-segment point takes the truth label of the nearest snapshot point within this distance
-// (3 cm voxels plus sensor noise).
-constexpr double kTruthTransferDistance = 0.06;  // [m]
-constexpr double kSingleObjectShare = 0.95;      // a stone is single when one segment holds this share
-}  // namespace
 
 MetricDrone load_metric_drone(const io::RunDirectory& run, const ScaleRecoveryConfig& config) {
   if (run.drone_cloud.empty() || run.drone_sparse.empty() || run.drone_vins.empty())
@@ -63,13 +55,17 @@ ScoredRegistration score_registration(const GlobalRegistrationResult& r, const M
       labels.push_back(std::int32_t(k));
     }
   }
-  const std::vector<std::int32_t> t = transfer_labels(truth.snapshot, all, kTruthTransferDistance);
-  const SegmentationScore score = score_segmentation(labels, t, truth.num_stones);
+  const SegmentationScore score = score_against_truth(all, labels, truth);
   s.single_stones = score.found(kSingleObjectShare);
   s.objects_score = score.to_json(kSingleObjectShare);
   s.every_stone_single = int(s.single_stones) == truth.num_stones;
   s.success = s.accepted && s.every_stone_single;
   return s;
+}
+
+SegmentationScore score_against_truth(const PointCloud& cloud, const std::vector<std::int32_t>& labels,
+                                      const RegistrationTruth& truth) {
+  return score_segmentation(labels, transfer_labels(truth.snapshot, cloud, kTruthTransferDistance), truth.num_stones);
 }
 
 nlohmann::json ScoredRegistration::to_json() const {

@@ -7,6 +7,7 @@
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/registration/scale_recovery.hpp"
+#include "cairn/segmentation/evaluation.hpp"
 
 namespace cairn::eval {
 
@@ -28,6 +29,16 @@ struct RegistrationTruth {
   Vec3d site_centre = Vec3d::Zero();  // mean of the stones' points: where the error is measured
 };
 [[nodiscard]] RegistrationTruth load_registration_truth(const io::RunDirectory& run, int num_stones);
+
+/// A scored point takes the truth label of the nearest truth-snapshot point within this distance
+/// (the map's 3 cm voxels plus range noise); farther points count as none.
+inline constexpr double kTruthTransferDistance = 0.06;  // [m]
+/// A stone is a single object when one segment holds this share of its points.
+inline constexpr double kSingleObjectShare = 0.95;
+
+/// A segmentation of `cloud` (`labels`, one per point) scored against the run's truth.
+[[nodiscard]] SegmentationScore score_against_truth(const PointCloud& cloud, const std::vector<std::int32_t>& labels,
+                                                    const RegistrationTruth& truth);
 
 /// One registration scored as in the paper's protocol: accepted (RMSE < e_icp over the overlap),
 /// every stone a single object of the registered scene (GlobalRegistrationResult::objects: the

@@ -80,9 +80,9 @@ Similarity read_drone_truth(const fs::path& run) {
   if (!in) throw InputError("cannot read " + file.string());
   try {
     const nlohmann::json j = nlohmann::json::parse(in);
-    if (!j.contains("T_map_drone")) throw InputError(file.string() + " has no T_map_drone");
+    if (!j.contains("T_map_drone")) throw InputError("it has no T_map_drone");
     return Similarity::from_matrix(matrix_from_json(j.at("T_map_drone")));
-  } catch (const nlohmann::json::exception& e) {
+  } catch (const std::exception& e) {  // JSON syntax, the matrix's shape, not a similarity
     throw InputError(file.string() + " is not a drone truth file: " + e.what());
   }
 }
