@@ -22,15 +22,6 @@
 #include "commands.hpp"
 
 namespace cairn::app {
-using eval::MetricDrone;
-using eval::load_metric_drone;
-using eval::RegistrationTruth;
-using eval::load_registration_truth;
-using eval::ScoredRegistration;
-using eval::score_registration;
-using eval::MapRelativeError;
-using eval::error_against_map;
-
 namespace {
 
 constexpr double kTopViewPixelsPerMetre = 40.0;
@@ -103,18 +94,18 @@ int run_pipeline(const PipelineArgs& a) {
                100 * ate_raw.ate_rmse, 100 * ate_mapped.ate_rmse, mapped.stats.nodes, map.size());
 
   // 3. Registration of the drone cloud into the map (when the run has a drone survey).
-  const RegistrationTruth reg_truth = load_registration_truth(rd, int(cfg.simulation.site.stones.count));
+  const eval::RegistrationTruth reg_truth = eval::load_registration_truth(rd, int(cfg.simulation.site.stones.count));
   sw.lap_ms();
   nlohmann::json registration = "skipped (no drone survey)";
   PointCloud merged = map;
   if (!rd.drone_cloud.empty()) {
     spdlog::info("pipeline [3/5] registering the drone cloud into the map (scale Sec. 4.1, segments Sec. 4.4)");
-    const MetricDrone drone = load_metric_drone(rd, cfg.scale);
+    const eval::MetricDrone drone = eval::load_metric_drone(rd, cfg.scale);
     t.add("scale_recovery", sw.lap_ms());
     const GlobalRegistrationResult r = register_global(drone.cloud, map, cfg.segmentation, cfg.registration);
     t.add("registration", sw.lap_ms());
     r.timings.log("pipeline   registration:");
-    const ScoredRegistration scored = score_registration(r, drone, reg_truth);
+    const eval::ScoredRegistration scored = eval::score_registration(r, drone, reg_truth);
     registration = scored.to_json();
     registration["scale"] = drone.scale.T_metric_sfm.scale;
     registration["scale_error"] = drone.scale_error;
@@ -126,8 +117,8 @@ int run_pipeline(const PipelineArgs& a) {
     registration["timings_ms"] = rt;
     if (!r.success) registration["reason"] = r.reason;
     if (r.success) {
-      const MapRelativeError rel =
-          error_against_map(r.T_target_source, drone, reg_truth, ObjectSurfaceTruth(reg_truth.snapshot), map);
+      const eval::MapRelativeError rel =
+          eval::error_against_map(r.T_target_source, drone, reg_truth, ObjectSurfaceTruth(reg_truth.snapshot), map);
       registration["error_vs_map"] = {{"rotation_deg", rel.error.rotation_deg},
                                       {"translation_m", rel.error.translation_m},
                                       {"map_offset_at_stones_m", rel.map_offset_m}};

@@ -19,15 +19,6 @@
 #include "commands.hpp"
 
 namespace cairn::app {
-using eval::MetricDrone;
-using eval::load_metric_drone;
-using eval::RegistrationTruth;
-using eval::load_registration_truth;
-using eval::ScoredRegistration;
-using eval::score_registration;
-using eval::MapRelativeError;
-using eval::error_against_map;
-
 namespace {
 
 // A success whose error exceeds these is a false positive (the acceptance test let a wrong
@@ -62,7 +53,7 @@ struct Trial {
   std::uint64_t seed = 0;
   double time = 0.0;  // seconds of scanning
   std::size_t map_points = 0;
-  ScoredRegistration score;
+  eval::ScoredRegistration score;
   /// The error against the map as built: the truth moved by the map's own rigid offset from the
   /// true surfaces at the stones at that time (ICP of the map's points near the stones onto the
   /// truth snapshot; the GNSS bias and heading error no relative constraint can observe). score.error = registration + map offset; this is
@@ -159,8 +150,8 @@ int run_protocol(const ProtocolArgs& a) {
     } remove_run{run_dir, a.keep_runs};
     (void)sim::simulate_run(a.scenario, cfg.simulation, seed, a.duration, run_dir, /*overwrite=*/true);
     const io::RunDirectory rd = io::open_run_directory(run_dir);
-    const MetricDrone drone = load_metric_drone(rd, cfg.scale);
-    const RegistrationTruth truth = load_registration_truth(rd, num_stones);
+    const eval::MetricDrone drone = eval::load_metric_drone(rd, cfg.scale);
+    const eval::RegistrationTruth truth = eval::load_registration_truth(rd, num_stones);
     const ObjectSurfaceTruth true_objects(truth.snapshot);  // for the map's offset at the stones
     PointCloud mirrored = drone.cloud;  // a site that does not exist: the stones' layout mirrored
     for (Vec3f& p : mirrored.points) p.x() = -p.x();
@@ -189,8 +180,8 @@ int run_protocol(const ProtocolArgs& a) {
       t.map_points = map.size();
       if (!map.empty()) {
         const GlobalRegistrationResult r = register_global(drone.cloud, map, cfg.segmentation, cfg.registration);
-        t.score = score_registration(r, drone, truth);
-        const MapRelativeError rel = error_against_map(r.T_target_source, drone, truth, true_objects, map);
+        t.score = eval::score_registration(r, drone, truth);
+        const eval::MapRelativeError rel = eval::error_against_map(r.T_target_source, drone, truth, true_objects, map);
         t.error_vs_map = rel.error;
         t.map_offset_m = rel.map_offset_m;
         t.rmse = r.rmse;

@@ -456,6 +456,9 @@ GraspPlan Experiment::command(const grasp::GraspPlanning& p, const ObjectRecord&
   if (c_.place_by_weight)
     plan.place_com_xy = (m.E_state(t0 + c_.tracking.carry_time) * Vec3d(target.x(), target.y(), g.place_ground_z)).head<2>();
   plan.target_stone = stone;  // the physics' truth: grasping another stone is a failure
+  spdlog::debug("demo: lowering {:.3f} m (ground {:.3f}, underside {:.3f}); world grasp z {:.3f}, place z {:.3f}", dz,
+                g.place_ground_z, g.place_bottom_z, plan.T_world_gripper.translation().z(),
+                plan.T_world_place.translation().z());
   return plan;
 }
 
@@ -878,6 +881,10 @@ nlohmann::json detection_json(const GraspDetection& d) {
 }
 nlohmann::json or_null(double v) { return v >= 0 ? nlohmann::json(v) : nlohmann::json(nullptr); }
 nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+/// A lowering estimate of the record (map frame z), null where nothing was commanded.
+nlohmann::json commanded(const GraspRecord& g, double z) {
+  return std::isfinite(g.place_ground_error_m) ? nlohmann::json(z) : nlohmann::json(nullptr);
+}
 }  // namespace
 
 nlohmann::json to_json(const ExperimentResult& r) {
@@ -902,6 +909,8 @@ nlohmann::json to_json(const ExperimentResult& r) {
                                      {"release_drift_m", or_null(x.release_drift_m)},
                                      {"weighed_com_error_m", or_null(x.weighed_com_error_m)},
                                      {"place_correction_m", or_null(x.place_correction_m)},
+                                     {"ground_z", commanded(x, x.place_ground_z)},
+                                     {"bottom_z", commanded(x, x.place_bottom_z)},
                                      {"ground_error_m", finite_or_null(x.place_ground_error_m)},
                                      {"bottom_error_m", finite_or_null(x.place_bottom_error_m)}}},
                       {"others_moved_m", x.others_moved_m},
