@@ -816,7 +816,8 @@ TEST(RunTruth, DroneTruthReadsBackOrNamesTheFile) {
   std::ofstream(file) << nlohmann::json{{"T_map_drone", matrix_to_json(T.matrix())}}.dump();
   const Similarity back = read_drone_truth(run);
   EXPECT_LT((back.matrix() - T.matrix()).cwiseAbs().maxCoeff(), 1e-12);
-  const std::string shear = nlohmann::json{{"T_map_drone", {{1, 0.5, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}}}}.dump();
+  const nlohmann::json sheared = {{1, 0.5, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+  const std::string shear = nlohmann::json{{"T_map_drone", sheared}}.dump();
   for (const std::string& bad : {std::string("{\"T_map_drone\": [1, 2]}"), shear, std::string("{}"),
                                 std::string("{\"T_map_drone\": ")}) {
     std::ofstream(file) << bad;
