@@ -1,11 +1,13 @@
 // The centred-grasp baseline (eval/grasp_baseline.hpp): every stone of a settled site gets one
 // trial, the parallel run gives what a single trial on the same site gives, the summary counts the
-// trials, and a seed the generator cannot make is reported, not fatal.
+// trials, and a site that cannot be made (a real mesh that cannot be read) is reported, not fatal.
 #include "cairn/eval/grasp_baseline.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
 
 #include "cairn/core/error.hpp"
 #include "cairn/sim/simulation.hpp"
@@ -51,15 +53,22 @@ TEST(GraspBaseline, EveryStoneOneTrialAsASingleTrialGivesIt) {
 }
 
 TEST(GraspBaseline, SitesTheGeneratorCannotMakeAreReported) {
+  // A real stone mesh that cannot be read: every site that draws from it is skipped, named.
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cairn_baseline_bad_meshes";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "broken.ply") << "ply\nformat ascii 1.0\nelement vertex 3\nend_header\n0 0\n";
   GraspBaselineConfig c;
   c.scenarios = {"exp2"};
-  c.seeds = {8};  // the generator cannot place all seven stones of exp2 for seed 8
+  c.seeds = {8};
+  c.mesh_dir = dir.string();
   const GraspBaselineResult r = run_grasp_baseline(c);
   EXPECT_TRUE(r.trials.empty());
   ASSERT_EQ(r.skipped_sites.size(), 1u);
-  EXPECT_NE(r.skipped_sites[0].find("exp2 seed 8: generate_site"), std::string::npos) << r.skipped_sites[0];
+  EXPECT_NE(r.skipped_sites[0].find("exp2 seed 8: "), std::string::npos) << r.skipped_sites[0];
+  EXPECT_NE(r.skipped_sites[0].find("broken.ply"), std::string::npos) << r.skipped_sites[0];
   c.scenarios = {"nope"};
   EXPECT_THROW((void)run_grasp_baseline(c), ConfigError);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

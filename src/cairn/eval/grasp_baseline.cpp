@@ -34,7 +34,7 @@ SiteJob settled_site(const std::string& scenario, std::uint64_t seed, const Gras
   SiteJob job{.scenario = scenario, .seed = seed};
   try {
     job.site = sim::make_site(cfg, seed, &settle);
-  } catch (const std::runtime_error& e) {  // e.g. "generate_site: cannot place stone 7 of 7 ..."
+  } catch (const std::runtime_error& e) {  // e.g. a real stone mesh that cannot be read
     job.error = e.what();
   }
   job.at_rest = settle.settled;
@@ -77,7 +77,7 @@ GraspBaselineResult run_grasp_baseline(const GraspBaselineConfig& c, const std::
     for (const std::uint64_t seed : c.seeds) keys.emplace_back(scenario, seed);
   }
   require_scenarios(c.scenarios);
-  const std::filesystem::path mesh_dir = sim::default_real_mesh_dir();
+  const std::filesystem::path mesh_dir = c.mesh_dir.empty() ? sim::default_real_mesh_dir() : std::filesystem::path(c.mesh_dir);
   std::vector<SiteJob> sites(keys.size());
   tbb::parallel_for(std::size_t{0}, keys.size(),
                     [&](std::size_t i) { sites[i] = settled_site(keys[i].first, keys[i].second, c, mesh_dir); });

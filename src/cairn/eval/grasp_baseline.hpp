@@ -21,6 +21,8 @@ struct GraspBaselineConfig {
   std::vector<std::string> scenarios = {"exp1", "exp2"};
   std::vector<std::uint64_t> seeds = {1, 2, 3, 4};
   double place_yaw = 0.5 * std::numbers::pi;  // [rad] the move: a quarter turn about the vertical
+  /// Real stone meshes (*.ply) the scenarios draw from; empty: sim::default_real_mesh_dir().
+  std::string mesh_dir;
   sim::PhysicsConfig physics;
   GripperConfig gripper;
 };

@@ -12,6 +12,7 @@
 #include <map>
 #include <mutex>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <unordered_map>
@@ -61,6 +62,10 @@ constexpr Range kCutOffset{0.62, 0.85};        // plane offset / support along n
 // Placement and sampling -----------------------------------------------------------------------
 constexpr double kMaxRoundTilt = 10.0 * kPi / 180.0;  // roundish stones rest slightly tilted
 constexpr int kMaxPlacementAttempts = 10000;          // rejection samples per stone
+// Sequential placement jams now and then (the stones placed first leave no gap wide enough for a
+// large last one: exp1 seed 24). The whole layout is then drawn again from the continuing random
+// sequence, so every seed that placed its stones at once keeps its site.
+constexpr int kMaxLayoutAttempts = 50;
 constexpr int kMaxSettleSteps = 120;                  // tipping steps when settling
 constexpr double kSettleStep = 0.5 * kPi / 180.0;     // [rad] per tipping step
 constexpr double kSettleContact = 0.01;               // [m] above the terrain still counts as support
@@ -308,8 +313,9 @@ bool outside_keep_out(const Vec2d& spot, double radius, const StoneConfig& c) {
 }
 
 /// Rejection sampling in the placement disc; footprint discs keep min_spacing between them.
-Vec2d free_spot(double radius, const std::vector<Footprint>& placed, const StoneConfig& c,
-                std::mt19937_64& rng) {
+/// Nothing when no free spot was found in kMaxPlacementAttempts samples.
+std::optional<Vec2d> free_spot(double radius, const std::vector<Footprint>& placed, const StoneConfig& c,
+                               std::mt19937_64& rng) {
   for (int attempt = 0; attempt < kMaxPlacementAttempts; ++attempt) {
     const double r = c.placement_radius * std::sqrt(uniform01(rng));
     const double angle = kTwoPi * uniform01(rng);
@@ -320,10 +326,7 @@ Vec2d free_spot(double radius, const std::vector<Footprint>& placed, const Stone
     });
     if (free && outside_keep_out(spot, radius, c)) return spot;
   }
-  throw ConfigError("generate_site: cannot place stone " + std::to_string(placed.size() + 1) +
-                    " of " + std::to_string(c.count) + " with min_spacing " +
-                    std::to_string(c.min_spacing) + " m within placement_radius " +
-                    std::to_string(c.placement_radius) + " m (too many or too large stones)");
+  return std::nullopt;
 }
 
 /// Height of the centroid such that the deepest vertex sinks embed_depth below the terrain.
@@ -487,8 +490,9 @@ std::vector<CollisionPart> real_stone_parts(const std::string& path, const RawMe
   return done.emplace(key.str(), std::move(parts)).first->second;
 }
 
-/// One stone: orientation, spot and resting height for a given shape.
-Stone place_stone(StoneShape shape, std::vector<Footprint>& footprints, const std::vector<Stone>& placed,
+/// One stone: orientation, spot and resting height for a given shape; nothing when the stone
+/// found no free spot (free_spot).
+std::optional<Stone> place_stone(StoneShape shape, std::vector<Footprint>& footprints, const std::vector<Stone>& placed,
                   const std::vector<SolidMesh>& solids, const StoneConfig& c, const Terrain& terrain,
                   std::mt19937_64& rng) {
   Stone stone;
@@ -504,9 +508,11 @@ Stone place_stone(StoneShape shape, std::vector<Footprint>& footprints, const st
     v.push_back(rotation * p);
     radius = std::max(radius, v.back().head<2>().norm());
   }
-  const Vec2d spot = c.arrangement == "pile"
-                         ? pile_spot(v, shape.local, radius, placed, solids, c, terrain, rng)
-                         : free_spot(radius, footprints, c, rng);
+  const std::optional<Vec2d> found = c.arrangement == "pile"
+                                         ? pile_spot(v, shape.local, radius, placed, solids, c, terrain, rng)
+                                         : free_spot(radius, footprints, c, rng);
+  if (!found) return std::nullopt;
+  const Vec2d spot = *found;
   if (c.settle) {
     const Eigen::Matrix3d tipped = settle(v, spot, terrain, c);
     stone.yaw = std::atan2(tipped(1, 0), tipped(0, 0)) + stone.yaw;
@@ -735,6 +741,71 @@ Eigen::Vector3d Terrain::normal(double x, double y) const {
 
 // Site -----------------------------------------------------------------------------------------
 
+/// Which stones take a real mesh (prepared at unit volume), and which one.
+struct RealStones {
+  std::vector<io::Mesh> meshes;
+  std::vector<bool> use;
+  std::vector<std::size_t> index;
+};
+
+/// Real meshes: loaded once; which stones use them is drawn only when asked for, so procedural
+/// sites keep their random sequence.
+RealStones choose_real_stones(const StoneConfig& c, std::mt19937_64& rng) {
+  RealStones real;
+  for (const auto& path : c.real_meshes) {
+    if (c.real_fraction > 0) real.meshes.push_back(prepare_real_stone_mesh(io::read_ply_mesh(path), 1.0));
+  }
+  real.use.assign(static_cast<std::size_t>(c.count), false);
+  real.index.assign(real.use.size(), 0);
+  if (real.meshes.empty()) return real;
+  const auto n_real = static_cast<std::size_t>(std::lround(c.real_fraction * c.count));
+  std::vector<std::size_t> order(real.use.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  for (std::size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[uniform_index(rng, i)]);
+  for (std::size_t i = 0; i < std::min(n_real, order.size()); ++i) {
+    real.use[order[i]] = true;
+    real.index[order[i]] = i % real.meshes.size();
+  }
+  return real;
+}
+
+/// Shape of stone k: its volume, then a real mesh scaled to it or a procedural rock.
+StoneShape stone_shape(std::size_t k, bool flat, const RealStones& real, const StoneConfig& c, std::mt19937_64& rng) {
+  StoneShape shape;
+  shape.volume = uniform(rng, {c.min_volume, c.max_volume});
+  if (!real.use[k]) {
+    shape.flat = flat;
+    shape.local = to_raw(make_stone_mesh(shape.volume, flat, rng));
+    shape.parts = decompose_convex(shape.local.v, shape.local.t, c.collision).parts;
+    return shape;
+  }
+  shape.local = to_raw(real.meshes[real.index[k]]);
+  shape.parts = real_stone_parts(c.real_meshes[real.index[k]], shape.local, c.collision);  // scale with it
+  const double scale = std::cbrt(shape.volume);
+  for (auto& p : shape.local.v) p *= scale;
+  const Eigen::Vector3d size = bounding_box(shape.local.v).sizes();
+  shape.flat = size.z() <= kFlatMaxThickness * std::max(size.x(), size.y()) * std::sqrt(2.0);
+  shape.source = std::filesystem::path(c.real_meshes[real.index[k]]).filename().string();
+  return shape;
+}
+
+/// One layout: every stone's shape and place, in order. Nothing when a stone found no spot.
+std::optional<std::vector<Stone>> layout_stones(const RealStones& real, const StoneConfig& c, const Terrain& terrain,
+                                                std::mt19937_64& rng) {
+  std::vector<Stone> stones;
+  std::vector<Footprint> footprints;
+  std::vector<SolidMesh> solids;
+  const std::vector<bool> flat = flat_flags(c, rng);
+  for (std::size_t k = 0; k < flat.size(); ++k) {
+    std::optional<Stone> stone =
+        place_stone(stone_shape(k, flat[k], real, c, rng), footprints, stones, solids, c, terrain, rng);
+    if (!stone) return std::nullopt;
+    stones.push_back(std::move(*stone));
+    solids.emplace_back(stones.back().mesh);
+  }
+  return stones;
+}
+
 Site generate_site(const SiteConfig& config, std::uint64_t seed) {
   validate(config.terrain);
   validate(config.stones);
@@ -744,49 +815,16 @@ Site generate_site(const SiteConfig& config, std::uint64_t seed) {
   site.stone_config = config.stones;
   site.terrain = Terrain::random(config.terrain, rng);
   const StoneConfig& c = config.stones;
-  // Real meshes: loaded once, prepared at unit volume; which stones use them is drawn only when
-  // asked for, so procedural sites keep their random sequence.
-  std::vector<io::Mesh> real;
-  for (const auto& path : c.real_meshes) {
-    if (c.real_fraction > 0) real.push_back(prepare_real_stone_mesh(io::read_ply_mesh(path), 1.0));
-  }
-  std::vector<bool> use_real(static_cast<std::size_t>(c.count), false);
-  std::vector<std::size_t> real_index(use_real.size(), 0);
-  if (!real.empty()) {
-    const auto n_real = static_cast<std::size_t>(std::lround(c.real_fraction * c.count));
-    std::vector<std::size_t> order(use_real.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    for (std::size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[uniform_index(rng, i)]);
-    for (std::size_t i = 0; i < std::min(n_real, order.size()); ++i) {
-      use_real[order[i]] = true;
-      real_index[order[i]] = i % real.size();
+  const RealStones real = choose_real_stones(c, rng);
+  for (int attempt = 0; attempt < kMaxLayoutAttempts; ++attempt) {
+    if (std::optional<std::vector<Stone>> stones = layout_stones(real, c, site.terrain, rng)) {
+      site.stones = std::move(*stones);
+      return site;
     }
   }
-  std::vector<Footprint> footprints;
-  std::vector<SolidMesh> solids;
-  const std::vector<bool> flat = flat_flags(c, rng);
-  for (std::size_t k = 0; k < flat.size(); ++k) {
-    StoneShape shape;
-    shape.volume = uniform(rng, {c.min_volume, c.max_volume});
-    if (use_real[k]) {
-      const io::Mesh& unit = real[real_index[k]];
-      shape.local = to_raw(unit);
-      shape.parts = real_stone_parts(c.real_meshes[real_index[k]], shape.local, c.collision);  // scale with it
-      const double scale = std::cbrt(shape.volume);
-      for (auto& p : shape.local.v) p *= scale;
-      const Eigen::Vector3d size = bounding_box(shape.local.v).sizes();
-      shape.flat = size.z() <= kFlatMaxThickness * std::max(size.x(), size.y()) * std::sqrt(2.0);
-      shape.source = std::filesystem::path(c.real_meshes[real_index[k]]).filename().string();
-    } else {
-      shape.flat = flat[k];
-      shape.local = to_raw(make_stone_mesh(shape.volume, flat[k], rng));
-      shape.parts = decompose_convex(shape.local.v, shape.local.t, c.collision).parts;
-    }
-    site.stones.push_back(
-        place_stone(std::move(shape), footprints, site.stones, solids, c, site.terrain, rng));
-    solids.emplace_back(site.stones.back().mesh);
-  }
-  return site;
+  throw ConfigError("generate_site: cannot place " + std::to_string(c.count) + " stones with min_spacing " +
+                    std::to_string(c.min_spacing) + " m within placement_radius " + std::to_string(c.placement_radius) +
+                    " m in " + std::to_string(kMaxLayoutAttempts) + " layouts (too many or too large stones)");
 }
 
 std::vector<std::vector<Eigen::Vector3d>> collision_point_sets(const Stone& stone) {
