@@ -39,6 +39,7 @@ struct GraspTrialArgs {
   std::string out;
   std::vector<double> place_offset = {2.0, 0.0};
   double place_yaw = 0.0;
+  double place_drop = sim::CentredGraspOptions{}.place_drop;
   bool no_settle = false;
   std::string config_file;
   std::vector<std::string> overrides;
@@ -91,6 +92,7 @@ int run_grasp_trial(const GraspTrialArgs& a) {
     if (a.place_offset.size() != 2) throw InputError("--place-offset needs two values: X Y");
     o.place_offset = Eigen::Vector2d(a.place_offset[0], a.place_offset[1]);
     o.place_yaw = a.place_yaw;
+    o.place_drop = a.place_drop;
     plan = sim::centred_antipodal_grasp(site.stones[static_cast<std::size_t>(a.stone)], cfg.gripper, &site.terrain, o);
     plan.target_stone = a.stone;
   } else {
@@ -141,6 +143,10 @@ void add_grasp_trial_command(CLI::App& app, std::function<int()>& run) {
   cmd->add_option("--out", args->out, "also write the JSON result to this file");
   cmd->add_option("--place-offset", args->place_offset, "default grasp: place shift X Y [m]")->expected(2)->capture_default_str();
   cmd->add_option("--place-yaw", args->place_yaw, "default grasp: place rotation about the vertical [rad]")->capture_default_str();
+  cmd->add_option("--place-drop", args->place_drop,
+                  "default grasp: place pose this high above the ground-contact pose [m]; negative: pressed "
+                  "below it, lowering stops when the arm's load says the ground carries the stone")
+      ->capture_default_str();
   cmd->add_flag("--no-settle", args->no_settle, "start from the procedural placement (not settled in the physics)");
   cmd->add_option("--config", args->config_file, "YAML with physics.* and gripper.* settings");
   cmd->add_option("--set", args->overrides, "override a setting: physics.timestep=0.004 (repeatable)");

@@ -139,8 +139,9 @@ TEST(GraspTrial, PlacingByWeightPutsTheCentreOfMassOnTheTarget) {
               landed(blind));
   EXPECT_LT((weighed.weighed_com.head<2>() - held_com).norm(), 0.01);  // measured 2 mm
   EXPECT_GT(weighed.place_correction, 0.2);
-  // Measured 3.8 cm: the box hangs tilted about the jaw axis (held off-centre) and settles flat
-  // when the jaws open, its centre moving sideways; the weighing itself is within millimetres.
+  // Measured 3.0 cm: the box hangs tilted about the jaw axis (held off-centre); its low edge
+  // touches first, and pressed down until the ground carries it (Trial::set_down) it turns flat
+  // in the jaws, its centre moving sideways; the weighing itself is within millimetres.
   EXPECT_LT(landed(weighed), 0.05);
 }
 
@@ -154,6 +155,36 @@ std::vector<TraceSample> trace_in(const GraspTrialResult& r, const std::string& 
     }
   }
   return out;
+}
+
+// Setting down on the machine's signal (PhysicsConfig::place_support_fraction): a box held 0.25 m
+// off its centre hangs tilted about the jaw axis, so one edge touches the ground first and rings
+// the stiff contact (the arm's load swings to several times the weight, both signs, for a few
+// steps). The place pose lies 0.3 m below the ground contact, so only the load can stop the
+// lowering, and it must stop once the ground carries the box, not on that first touch.
+TEST(GraspTrial, TheJawsOpenOnlyOnceTheGroundCarriesTheStone) {
+  const Site site = flat_box_site();
+  const GripperConfig gripper;
+  CentredGraspOptions o;
+  o.place_offset = {1.5, 0.5};
+  o.place_drop = -0.3;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.target_stone = 0;
+  plan.T_world_gripper.translation().x() += 0.25;  // off-centre: the box hangs tilted
+  PhysicsConfig c = fast_config();
+  const GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
+  ASSERT_TRUE(r.success) << r.message;
+  ASSERT_TRUE(r.released_centroid.allFinite() && r.rest_centroid.allFinite());
+  // How far the box's centre fell once the jaws opened: it is still tilted in the jaws (its low
+  // edge on the ground) and turns flat; the higher it hung, the further.
+  const double fell = r.released_centroid.z() - r.rest_centroid.z();
+  std::printf("released on support: %d; the box's centre fell %.3f m after the release\n", r.released_on_support, fell);
+  // Truth: the contacts carried place_support_fraction (95 %) of the weight when the jaws opened,
+  // the box lay flat (measured: it fell 0.000 m). Without clipping the ring's samples
+  // (Trial::set_down) the jaws opened on the first touch: not on support, and the box fell 0.175 m
+  // (with them clipped at 80 %: the box still tilted ~10 deg in the jaws, 0.119 m).
+  EXPECT_TRUE(r.released_on_support);
+  EXPECT_LT(fell, 0.02);
 }
 
 TEST(GraspTrial, TraceCarriesTheStoneWeightAndASteadyJaw) {

@@ -88,7 +88,6 @@ void validate(const ExperimentConfig& c) {
   const SlipDetectionConfig& d = c.detection;
   if (!(d.min_load >= 0) || !(d.load_drop > 0 && d.load_drop < 1) || !(d.jaw_travel > 0) || !(d.target_tolerance > 0))
     throw ConfigError("experiment detection: min_load >= 0, load_drop in (0, 1), positive jaw_travel and target_tolerance");
-  if (!(c.place_support > 0 && c.place_support <= 1)) throw ConfigError("experiment: place_support must lie in (0, 1]");
   if (c.inject_friction < 0) throw ConfigError("experiment: inject_friction must be >= 0");
   if (!(c.scene_voxel > 0)) throw ConfigError("experiment: scene_voxel must be > 0");
   c.grasp.validate();
@@ -472,7 +471,6 @@ sim::GraspTrialResult Experiment::execute(const GraspPlan& plan, int attempt, Gr
   const std::vector<std::vector<Vec3d>> surfaces_before = surfaces(site);
   sim::PhysicsConfig physics = m.config().physics;
   physics.abort_on_failure = false;  // the machine carries on until it notices itself
-  physics.place_support_fraction = c_.place_support;
   if (c_.inject_friction > 0 && moves_ == c_.inject_move && attempt == 1) physics.friction = c_.inject_friction;
   Stopwatch sw;
   sim::GraspTrialResult r = sim::run_grasp_trial(site, plan, m.config().gripper, physics);

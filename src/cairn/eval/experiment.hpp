@@ -80,9 +80,6 @@ struct ExperimentConfig {
   double place_depth = 0.1;        // [m] commanded below the expected contact: lowering stops on it
   double ground_radius = 0.6;      // [m] map points this close (xy) give a target's ground height
                                    // (a plane; the radius widened up to 4x where the map is sparse)
-  /// Lowering ends when the ground carries this share of the stone's weight (the arm's load has
-  /// fallen to the rest): the stone sits before the jaws open (PhysicsConfig::place_support_fraction).
-  double place_support = 0.8;
   /// Placing by weight (beyond the paper): the arm weighs the stone while it hangs still after
   /// the lift and sets its measured centre of mass, not the planner's estimate, on the target
   /// (GraspPlan::place_com_xy). Off: the paper's placement by the gripper pose alone.
@@ -130,7 +127,6 @@ struct ExperimentConfig {
     v("lift_height", lift_height, "[m] carried this high above the grasp");
     v("place_depth", place_depth, "[m] commanded below the expected contact (lowering stops on contact)");
     v("ground_radius", ground_radius, "[m] map points this close give a target's ground height");
-    v("place_support", place_support, "lowering ends when the ground carries this share of the weight");
     v("place_by_weight", place_by_weight, "set the weighed centre of mass (not the planner's) on the target");
     v("pile_shift", pile_shift, "[m] pile: a stone left on it moved this much during a move: the pile shifted");
     v("inject_friction", inject_friction, "tests: friction for one grasp (0: off)");

@@ -673,12 +673,15 @@ class Trial {
     load_lp_ = carried_load_;
   }
 
-  /// The machine's sign that the stone sits on the ground: the arm's load, low-passed like the
-  /// stall check (a first touch of a corner rings the stiff contacts for a few steps), has fallen
-  /// by place_support_fraction of the load it carried.
+  /// The machine's sign that the stone sits on the ground: the arm's load, low-passed over
+  /// place_filter_time (a first touch of a corner rings the stiff contacts for a few steps), has fallen
+  /// by place_support_fraction of the load it carried. Each sample is clipped to [0, carried]
+  /// first: the ring of a first touch swings the load far below zero (-115 kN on a 19 kN stone),
+  /// which alone would drag the low-pass under the threshold while the stone still hangs.
   bool set_down() {
     if (!(carried_load_ > 0.0)) return ground_carries();  // not weighed (a stall in the lift): the contacts
-    load_lp_ += std::min(1.0, c_.timestep / c_.arm_stall_time) * (scene_.arm_load() - load_lp_);
+    const double sample = std::clamp(scene_.arm_load(), 0.0, carried_load_);
+    load_lp_ += std::min(1.0, c_.timestep / c_.place_filter_time) * (sample - load_lp_);
     return load_lp_ < (1.0 - c_.place_support_fraction) * carried_load_;
   }
 
@@ -756,6 +759,7 @@ void validate(const PhysicsConfig& c) {
               positive(c.drop_distance),
           "collision_depth >= 0; slip_threshold, slip_angle_threshold, drop_distance > 0");
   require(c.place_support_fraction > 0.0 && c.place_support_fraction <= 1.0, "place_support_fraction must lie in (0, 1]");
+  require(positive(c.place_filter_time), "place_filter_time must be > 0");
   require(non_negative(c.weigh_min_load) && non_negative(c.max_place_correction),
           "weigh_min_load and max_place_correction must be >= 0");
   require(non_negative(c.free_margin) && non_negative(c.island_gap), "free_margin and island_gap must be >= 0");
