@@ -84,7 +84,7 @@ void BM_WorldAtRestSeeds(benchmark::State& state) {
       try {
         site = make_site(cfg, seed, &settle);
       } catch (const std::exception&) {
-        continue;  // the generator cannot place the stones for this seed
+        continue;  // the site cannot be made (a real stone mesh that cannot be read)
       }
       ++generated;
       if (!settle.settled) continue;

@@ -8,6 +8,10 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <system_error>
+
+#include <unistd.h>
 
 #include "cairn/core/error.hpp"
 #include "cairn/sim/simulation.hpp"
@@ -52,15 +56,27 @@ TEST(GraspBaseline, EveryStoneOneTrialAsASingleTrialGivesIt) {
   EXPECT_EQ(alone.sim_time, r.trials[0].result.sim_time);
 }
 
-TEST(GraspBaseline, SitesTheGeneratorCannotMakeAreReported) {
+/// A folder of its own for one test, removed when the test ends (passed or not).
+struct TempDir {
+  std::filesystem::path path;
+  explicit TempDir(const std::string& name)
+      : path(std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()))) {
+    std::filesystem::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path, ignored);
+  }
+};
+
+TEST(GraspBaseline, SitesThatCannotBeMadeAreReported) {
   // A real stone mesh that cannot be read: every site that draws from it is skipped, named.
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "cairn_baseline_bad_meshes";
-  std::filesystem::create_directories(dir);
-  std::ofstream(dir / "broken.ply") << "ply\nformat ascii 1.0\nelement vertex 3\nend_header\n0 0\n";
+  const TempDir dir("cairn_baseline_bad_meshes");
+  std::ofstream(dir.path / "broken.ply") << "ply\nformat ascii 1.0\nelement vertex 3\nend_header\n0 0\n";
   GraspBaselineConfig c;
   c.scenarios = {"exp2"};
   c.seeds = {8};
-  c.mesh_dir = dir.string();
+  c.mesh_dir = dir.path.string();
   const GraspBaselineResult r = run_grasp_baseline(c);
   EXPECT_TRUE(r.trials.empty());
   ASSERT_EQ(r.skipped_sites.size(), 1u);
@@ -68,7 +84,6 @@ TEST(GraspBaseline, SitesTheGeneratorCannotMakeAreReported) {
   EXPECT_NE(r.skipped_sites[0].find("broken.ply"), std::string::npos) << r.skipped_sites[0];
   c.scenarios = {"nope"};
   EXPECT_THROW((void)run_grasp_baseline(c), ConfigError);
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -490,6 +490,15 @@ TEST(GraspTrial, RejectsInvalidInput) {
   PhysicsConfig bad = fast_config();
   bad.timestep = 0.0;
   EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError);
+  // The set-down: a full share would never end the lowering (the clipped load never falls below 0).
+  for (const double share : {0.0, 1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    bad = fast_config();
+    bad.place_support_fraction = share;
+    EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError) << share;
+  }
+  bad = fast_config();
+  bad.place_filter_time = 0.0;
+  EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError);
 }
 
 TEST(Settle, DroppedStoneComesToRestOnTheTerrain) {

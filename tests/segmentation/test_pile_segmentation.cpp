@@ -84,7 +84,7 @@ SegmentationScore score_without_splitting(const PileSite& p) {
   return score_segmentation(segment(p.sampled.cloud, off).labels, p.sampled.truth, int(p.site.stones.size()));
 }
 
-/// The site, or none when the generator cannot place the stones (some spread seeds: printed).
+/// The site, or none when it cannot be made (printed; before 2026-12-07 some spread seeds jammed).
 std::optional<PileSite> try_pile_site(std::uint64_t seed, const std::string& scenario) {
   try {
     return pile_site(seed, scenario);

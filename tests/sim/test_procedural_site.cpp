@@ -290,26 +290,24 @@ TEST(GenerateSite, TerrainIsSmoothAndSloped) {
   }
 }
 
-// Every seed of every scenario makes its site: sequential placement jams now and then (exp1 seed
-// 24, exp2 seeds 8 and 18 could not place their seventh stone), and then the whole layout is
-// drawn again (seeds 1-200 of exp1, exp2 and pile all make their sites: 145 s, run once; here the
-// spread scenarios, whose placement can jam, on seeds 1-40).
+// Every seed of every scenario makes its site: sequential placement jams now and then (with the
+// shipped real meshes exp1 seed 24 and exp2 seeds 8 and 18 could not place their seventh stone),
+// and then the stones are drawn again (seeds 1-200 of exp1, exp2 and pile all make their sites:
+// 145 s, run once; here the spread scenarios, whose placement can jam, on seeds 1-40).
 TEST(GenerateSite, EveryScenarioPlacesItsStonesOnEverySeed) {
   const std::uint64_t last = test::kSanitized ? 8 : 40;
+  const std::vector<std::pair<std::string, std::uint64_t>> jammed = {{"exp1", 24}, {"exp2", 8}, {"exp2", 18}};
   for (const std::string name : {"exp1", "exp2"}) {
     const SiteConfig config = scenario_config(name, default_real_mesh_dir()).site;
-    int placed = 0;
-    for (std::uint64_t seed = 1; seed <= last; ++seed) {
-      SCOPED_TRACE(name + " seed " + std::to_string(seed));
-      const Site site = generate_site(config, seed);
-      ASSERT_EQ(site.stones.size(), static_cast<std::size_t>(config.stones.count));
-      ++placed;
+    std::vector<std::uint64_t> seeds;
+    for (std::uint64_t seed = 1; seed <= last; ++seed) seeds.push_back(seed);
+    for (const auto& [scenario, seed] : jammed) {
+      if (scenario == name && seed > last) seeds.push_back(seed);
     }
-    EXPECT_EQ(placed, static_cast<int>(last));
-  }
-  for (const auto& [name, seed] : std::vector<std::pair<std::string, std::uint64_t>>{{"exp1", 24}, {"exp2", 8}, {"exp2", 18}}) {
-    const SiteConfig config = scenario_config(name, default_real_mesh_dir()).site;
-    EXPECT_EQ(generate_site(config, seed).stones.size(), static_cast<std::size_t>(config.stones.count)) << name << seed;
+    for (const std::uint64_t seed : seeds) {
+      SCOPED_TRACE(name + " seed " + std::to_string(seed));
+      EXPECT_EQ(generate_site(config, seed).stones.size(), static_cast<std::size_t>(config.stones.count));
+    }
   }
 }
 

@@ -77,7 +77,8 @@ GraspBaselineResult run_grasp_baseline(const GraspBaselineConfig& c, const std::
     for (const std::uint64_t seed : c.seeds) keys.emplace_back(scenario, seed);
   }
   require_scenarios(c.scenarios);
-  const std::filesystem::path mesh_dir = c.mesh_dir.empty() ? sim::default_real_mesh_dir() : std::filesystem::path(c.mesh_dir);
+  const std::filesystem::path mesh_dir =
+      c.mesh_dir.empty() ? sim::default_real_mesh_dir() : std::filesystem::path(c.mesh_dir);
   std::vector<SiteJob> sites(keys.size());
   tbb::parallel_for(std::size_t{0}, keys.size(),
                     [&](std::size_t i) { sites[i] = settled_site(keys[i].first, keys[i].second, c, mesh_dir); });

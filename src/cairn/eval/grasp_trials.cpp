@@ -207,7 +207,7 @@ void run_site(const std::string& scenario, std::uint64_t seed, const GraspTrials
   SensedSite s;
   try {
     s = sense_site(scenario, seed, c);
-  } catch (const std::runtime_error& e) {  // the generator cannot place the stones of this seed
+  } catch (const std::runtime_error& e) {  // the site cannot be made (a mesh that cannot be read)
     out.skipped.push_back(name + ": " + e.what());
     return;
   }

@@ -124,7 +124,7 @@ struct PhysicsConfig {
   /// this share of the load it carried (the ground carries it), or at the place pose. Measured on
   /// 161 trials of generated stones pressed 0.3 m below contact (docs/simulator-physics.md): the
   /// longer the jaws hold on, the less a stone tips or falls once they open (0.8: 55 of 120 moved
-  /// more than 10 cm after the release; 0.95: 49; 0.3: the jaws opened on a first touch).
+  /// more than 10 cm after the release; 0.95: 49; before the clip, 0.8: 78).
   double place_support_fraction = 0.95;
   /// [s] time constant of that low-pass (each load sample first clipped to [0, carried load]:
   /// a first touch rings the stiff contact at several times the weight, both signs).
