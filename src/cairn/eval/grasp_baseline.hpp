@@ -47,8 +47,8 @@ struct GraspBaselineSummary {
 struct GraspBaselineResult {
   std::vector<GraspBaselineTrial> trials;  // scenario, seed, stone order
   /// Sites that could not be made for their seed ("exp2 seed 8: ...": a real stone mesh that
-  /// cannot be read, a layout that jammed 50 times), and trials that could not run ("exp1 seed 1 stone 3: ..."): reported instead
-  /// of aborting the run.
+  /// cannot be read, a layout that jammed 50 times), and trials that could not run ("exp1 seed 1
+  /// stone 3: ..."): reported instead of aborting the run.
   std::vector<std::string> skipped_sites;
   GraspBaselineSummary summary;
 };

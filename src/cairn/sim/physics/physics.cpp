@@ -759,7 +759,8 @@ void validate(const PhysicsConfig& c) {
               positive(c.drop_distance),
           "collision_depth >= 0; slip_threshold, slip_angle_threshold, drop_distance > 0");
   // < 1: the clipped, low-passed load never falls below zero, so a full share would never end the lowering.
-  require(c.place_support_fraction > 0.0 && c.place_support_fraction < 1.0, "place_support_fraction must lie in (0, 1)");
+  require(c.place_support_fraction > 0.0 && c.place_support_fraction < 1.0,
+          "place_support_fraction must lie in (0, 1)");
   require(positive(c.place_filter_time), "place_filter_time must be > 0");
   require(non_negative(c.weigh_min_load) && non_negative(c.max_place_correction),
           "weigh_min_load and max_place_correction must be >= 0");
