@@ -52,6 +52,7 @@ nlohmann::json to_json(const GraspTrialResult& r) {
            {{"released_centroid", point_or_null(r.released_centroid)},
             {"rest_centroid", point_or_null(r.rest_centroid)},
             {"grip_drift", r.grip_drift >= 0 ? nlohmann::json(rounded_json(r.grip_drift)) : nlohmann::json(nullptr)},
+            {"set_down_drift", r.set_down_drift >= 0 ? nlohmann::json(rounded_json(r.set_down_drift)) : nlohmann::json(nullptr)},
             {"released_on_support", r.released_on_support},
             {"release_touches", r.release_touches},
             {"weighed_com", point_or_null(r.weighed_com)},

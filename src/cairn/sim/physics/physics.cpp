@@ -295,7 +295,10 @@ class Trial {
         const Isometry3d place = r_.arm_stalled ? translated_world(target_, down) : place_;
         phase("place", [&] {
           start_lowering();
-          return move(place, c_.lift_speed, false, [&] { return !set_down(); });
+          bool reached = move(place, c_.lift_speed, false, [&] { return !touched(); });
+          if (!reached && c_.place_touch_fraction > 0) reached = creep(place);
+          if (!reached && c_.place_stop_on_set_down) stop_arm();
+          return reached;
         });
       }
       r_.T_world_release = target_;
@@ -441,13 +444,18 @@ class Trial {
     const double force = arm_force_.norm();
     if (!(force > c_.arm_max_force)) return false;
     r_.arm_stalled = true;
-    target_ = scene_.gripper_pose();
-    scene_.set_gripper_target(target_);
+    stop_arm();
     std::ostringstream m;
     m.precision(3);
     m << "arm stalled (" << force / 1000.0 << " kN) in " << phase_now_ << at_time();
     fail(reason::kArmStalled, m.str());
     return true;
+  }
+
+  /// The arm stops where it is: the target follows the gripper, so the weld pushes no further.
+  void stop_arm() {
+    target_ = scene_.gripper_pose();
+    scene_.set_gripper_target(target_);
   }
 
   void fail(const char* code, const std::string& message) {
@@ -656,7 +664,9 @@ class Trial {
     if (!lifted_ || r_.grasped_stone < 0) return;
     const Isometry3d stone = scene_.stone_body_pose(r_.grasped_stone);
     r_.released_centroid = stone.translation();
-    r_.grip_drift = ((scene_.gripper_pose().inverse() * stone).translation() - T_gripper_stone0_.translation()).norm();
+    const Vector3d in_grip = (scene_.gripper_pose().inverse() * stone).translation();
+    r_.grip_drift = (in_grip - T_gripper_stone0_.translation()).norm();
+    if (lowering_) r_.set_down_drift = (in_grip - T_gripper_stone_lowering_.translation()).norm();
     r_.released_on_support = ground_carries();
     for (const Contact& c : scene_.contacts()) {
       if (!detail::is_gripper(c.a) || c.b == r_.grasped_stone || detail::is_gripper(c.b)) continue;
@@ -669,6 +679,8 @@ class Trial {
   /// Lowering to place: the load the arm carried (weighed in the hold after the lift) and its
   /// low-passed value from here on.
   void start_lowering() {
+    lowering_ = true;
+    T_gripper_stone_lowering_ = scene_.gripper_pose().inverse() * scene_.stone_body_pose(r_.grasped_stone);
     carried_load_ = weighed_samples_ > 0 ? weighed_load_ / weighed_samples_ : 0.0;
     load_lp_ = carried_load_;
   }
@@ -678,11 +690,31 @@ class Trial {
   /// by place_support_fraction of the load it carried. Each sample is clipped to [0, carried]
   /// first: the ring of a first touch swings the load far below zero (-115 kN on a 19 kN stone),
   /// which alone would drag the low-pass under the threshold while the stone still hangs.
-  bool set_down() {
+  bool set_down() { return load_fell(c_.place_support_fraction); }
+
+  /// The stone touches: the same load has fallen by place_touch_fraction (feathering; without it,
+  /// the set-down itself).
+  bool touched() { return load_fell(c_.place_touch_fraction > 0 ? c_.place_touch_fraction : c_.place_support_fraction); }
+
+  /// One step of the low-passed load (call once per step); true when it has fallen by `share`.
+  bool load_fell(double share) {
     if (!(carried_load_ > 0.0)) return ground_carries();  // not weighed (a stall in the lift): the contacts
     const double sample = std::clamp(scene_.arm_load(), 0.0, carried_load_);
     load_lp_ += std::min(1.0, c_.timestep / c_.place_filter_time) * (sample - load_lp_);
-    return load_lp_ < (1.0 - c_.place_support_fraction) * carried_load_;
+    return load_lp_ < (1.0 - share) * carried_load_;
+  }
+
+  /// Feathering after the touch: straight down at place_touch_speed, at most to the height of
+  /// `to`, until the set-down fires (false) or that height is reached (true).
+  bool creep(const Isometry3d& to) {
+    const double end_z = to.translation().z();
+    while (target_.translation().z() > end_z) {
+      target_.translation().z() = std::max(end_z, target_.translation().z() - c_.place_touch_speed * c_.timestep);
+      scene_.set_gripper_target(target_);
+      step();
+      if (set_down()) return false;
+    }
+    return true;
   }
 
   /// Truth (diagnostics): the ground and other stones carry place_support_fraction of the held
@@ -705,6 +737,8 @@ class Trial {
   Isometry3d target_ = Isometry3d::Identity();
   Isometry3d stone_at_lift_ = Isometry3d::Identity(), T_gripper_stone0_ = Isometry3d::Identity();
   Isometry3d T_gripper_stone1_ = Isometry3d::Identity();
+  Isometry3d T_gripper_stone_lowering_ = Isometry3d::Identity();  // at the start of the lowering to place
+  bool lowering_ = false;
   bool gripped_ = false;
   bool lifted_ = false;  // the lift began with a stone between the jaws
   Isometry3d place_;     // the place pose: the plan's, shifted by place_by_weight
@@ -762,6 +796,9 @@ void validate(const PhysicsConfig& c) {
   require(c.place_support_fraction > 0.0 && c.place_support_fraction < 1.0,
           "place_support_fraction must lie in (0, 1)");
   require(positive(c.place_filter_time), "place_filter_time must be > 0");
+  require(c.place_touch_fraction >= 0 && c.place_touch_fraction < c.place_support_fraction,
+          "place_touch_fraction must be in [0, place_support_fraction)");
+  require(positive(c.place_touch_speed), "place_touch_speed must be > 0");
   require(non_negative(c.weigh_min_load) && non_negative(c.max_place_correction),
           "weigh_min_load and max_place_correction must be >= 0");
   require(non_negative(c.free_margin) && non_negative(c.island_gap), "free_margin and island_gap must be >= 0");
