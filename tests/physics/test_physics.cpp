@@ -157,6 +157,18 @@ std::vector<TraceSample> trace_in(const GraspTrialResult& r, const std::string& 
   return out;
 }
 
+// The box gripped 0.25 m off its centre (it hangs tilted about the jaw axis) and set down with
+// the place pose 0.3 m below the ground contact, so only the arm's load can stop the lowering.
+GraspPlan off_centre_box_pressed_down(const Site& site, const GripperConfig& gripper) {
+  CentredGraspOptions o;
+  o.place_offset = {1.5, 0.5};
+  o.place_drop = -0.3;
+  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
+  plan.target_stone = 0;
+  plan.T_world_gripper.translation().x() += 0.25;
+  return plan;
+}
+
 // Setting down on the machine's signal (PhysicsConfig::place_support_fraction): a box held 0.25 m
 // off its centre hangs tilted about the jaw axis, so one edge touches the ground first and rings
 // the stiff contact (the arm's load swings to several times the weight, both signs, for a few
@@ -165,12 +177,7 @@ std::vector<TraceSample> trace_in(const GraspTrialResult& r, const std::string& 
 TEST(GraspTrial, TheJawsOpenOnlyOnceTheGroundCarriesTheStone) {
   const Site site = flat_box_site();
   const GripperConfig gripper;
-  CentredGraspOptions o;
-  o.place_offset = {1.5, 0.5};
-  o.place_drop = -0.3;
-  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
-  plan.target_stone = 0;
-  plan.T_world_gripper.translation().x() += 0.25;  // off-centre: the box hangs tilted
+  const GraspPlan plan = off_centre_box_pressed_down(site, gripper);
   PhysicsConfig c = fast_config();
   const GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
   ASSERT_TRUE(r.success) << r.message;
@@ -197,12 +204,7 @@ TEST(GraspTrial, TheJawsOpenOnlyOnceTheGroundCarriesTheStone) {
 TEST(GraspTrial, TheSetDownStopsTheArmAndFeatheringKeepsTheJawsOffTheGround) {
   const Site site = flat_box_site();
   const GripperConfig gripper;
-  CentredGraspOptions o;
-  o.place_offset = {1.5, 0.5};
-  o.place_drop = -0.3;
-  GraspPlan plan = centred_antipodal_grasp(site.stones[0], gripper, &site.terrain, o);
-  plan.target_stone = 0;
-  plan.T_world_gripper.translation().x() += 0.25;
+  const GraspPlan plan = off_centre_box_pressed_down(site, gripper);
   const auto run = [&](const char* name, bool stop, double touch_fraction) {
     PhysicsConfig c = fast_config();
     c.place_stop_on_set_down = stop;
