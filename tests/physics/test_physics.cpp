@@ -157,6 +157,13 @@ std::vector<TraceSample> trace_in(const GraspTrialResult& r, const std::string& 
   return out;
 }
 
+// The lowest arm load of a phase's trace samples [N] (negative: the arm pushing down).
+double min_load(const GraspTrialResult& r, const std::string& phase) {
+  double m = 0.0;
+  for (const TraceSample& t : trace_in(r, phase)) m = std::min(m, t.arm_load);
+  return m;
+}
+
 // The box gripped 0.25 m off its centre (it hangs tilted about the jaw axis) and set down with
 // the place pose 0.3 m below the ground contact, so only the arm's load can stop the lowering.
 GraspPlan off_centre_box_pressed_down(const Site& site, const GripperConfig& gripper) {
@@ -188,7 +195,7 @@ TEST(GraspTrial, TheJawsOpenOnlyOnceTheGroundCarriesTheStone) {
   std::printf("released on support: %d; the box's centre fell %.3f m after the release\n", r.released_on_support, fell);
   // Truth: the contacts carried place_support_fraction (95 %) of the weight when the jaws opened,
   // the box lay flat (measured: it fell 0.000 m). Without clipping the ring's samples
-  // (Trial::set_down) the jaws opened on the first touch: not on support, and the box fell 0.175 m
+  // (Trial::load_fell) the jaws opened on the first touch: not on support, and the box fell 0.175 m
   // (with them clipped at 80 %: the box still tilted ~10 deg in the jaws, 0.119 m).
   EXPECT_TRUE(r.released_on_support);
   EXPECT_LT(fell, 0.02);
@@ -196,11 +203,11 @@ TEST(GraspTrial, TheJawsOpenOnlyOnceTheGroundCarriesTheStone) {
 
 // The box of the test above, held off its centre and commanded 0.3 m below the ground contact.
 // Lowered at full speed the arm drives on for the filter's lag after the ground has taken the box
-// and pushes it through the grip until both jaw tips stand on the ground. Two remedies:
-// - the arm stops where the set-down fired (PhysicsConfig::place_stop_on_set_down, default) instead
-//   of holding on to its last, deeper command while the jaws open;
-// - feathering (place_touch_fraction, place_touch_speed; off by default: it keeps the jaws off the
-//   ground, but stones seated less firmly move more after the release, docs/simulator-physics.md).
+// and pushes it through the grip until both jaw tips stand on the ground.
+// - The arm stops where the set-down fired (PhysicsConfig::place_stop_on_set_down, default) instead
+//   of holding on to its last, deeper command while the jaws open.
+// - Feathering (place_touch_fraction, place_touch_speed) keeps the jaws off the ground; off by
+//   default: stones seated less firmly move more after the release (docs/simulator-physics.md).
 TEST(GraspTrial, TheSetDownStopsTheArmAndFeatheringKeepsTheJawsOffTheGround) {
   const Site site = flat_box_site();
   const GripperConfig gripper;
@@ -209,28 +216,27 @@ TEST(GraspTrial, TheSetDownStopsTheArmAndFeatheringKeepsTheJawsOffTheGround) {
     PhysicsConfig c = fast_config();
     c.place_stop_on_set_down = stop;
     c.place_touch_fraction = touch_fraction;
-    const GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
-    double min_load = 0.0;  // the arm pushing down while the jaws open
-    for (const TraceSample& t : trace_in(r, "release")) min_load = std::min(min_load, t.arm_load);
+    GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
     std::printf("%s: the box moved %.3f m in the grip while set down; jaws on the ground: %zu; release command z "
                 "%.3f m; arm load while opening down to %.0f kN; the box fell %.3f m after the release\n",
                 name, r.set_down_drift, r.release_touches.size(), r.T_world_release.translation().z(),
-                min_load / 1000.0, r.released_centroid.z() - r.rest_centroid.z());
+                min_load(r, "release") / 1000.0, r.released_centroid.z() - r.rest_centroid.z());
     EXPECT_TRUE(r.success) << name << ": " << r.message;
-    return std::pair{r, min_load};
+    return r;
   };
-  const auto [stopped, stopped_load] = run("stops where set down (default)", true, 0.0);
-  const auto [pressing, pressing_load] = run("presses on (before)", false, 0.0);
-  const auto [feathered, feathered_load] = run("feathered", true, 0.2);
+  const GraspTrialResult stopped = run("stops where set down (default)", true, 0.0);
+  const GraspTrialResult pressing = run("presses on (before)", false, 0.0);
+  const GraspTrialResult feathered = run("feathered", true, 0.2);
   // Measured: the stopped arm's command at the opening 0.999 m, the pressing arm's 0.972 m.
   EXPECT_GT(stopped.T_world_release.translation().z(), pressing.T_world_release.translation().z() + 0.01);
-  // Without feathering both jaw tips end on the ground (the box turned 0.16 m in the grip); feathered
-  // none, the box turned flat 0.105 m and the arm hardly pushes (-7 kN against -206 kN, spikes of
-  // -7.9 MN, while the jaws cannot open against tips pressed into the ground).
-  EXPECT_FALSE(stopped.release_touches.empty());
+  // Measured: without feathering the box moved 0.159 m in the grip while set down and both jaw
+  // tips ended on the ground (the arm's load while the jaws opened: -206 kN most of the time, its
+  // first sample -7.9 MN; the jaws could not open against tips pressed into the ground, a known
+  // defect, docs/simulator-physics.md). Feathered: 0.105 m, no jaw on the ground, -7 kN.
+  EXPECT_GE(stopped.set_down_drift, 0.0);
+  EXPECT_LT(feathered.set_down_drift, stopped.set_down_drift - 0.02);
   EXPECT_TRUE(feathered.release_touches.empty()) << feathered.release_touches.front();
-  EXPECT_GT(feathered_load, -20e3);
-  EXPECT_LT(stopped_load, -100e3);
+  EXPECT_GT(min_load(feathered, "release"), -20e3);
   EXPECT_LT(feathered.released_centroid.z() - feathered.rest_centroid.z(), 0.02);  // it lay flat
 }
 
@@ -546,14 +552,17 @@ TEST(GraspTrial, RejectsInvalidInput) {
   bad = fast_config();
   bad.place_filter_time = 0.0;
   EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError);
-  for (const double share : {-0.1, 0.95, 0.99}) {  // the touch must come before the set-down (0.95)
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  for (const double share : {-0.1, 0.95, 0.99, nan}) {  // the touch must come before the set-down (0.95)
     bad = fast_config();
     bad.place_touch_fraction = share;
     EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError) << share;
   }
-  bad = fast_config();
-  bad.place_touch_speed = 0.0;
-  EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError);
+  for (const double speed : {0.0, -0.05, nan, inf}) {
+    bad = fast_config();
+    bad.place_touch_speed = speed;
+    EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError) << speed;
+  }
 }
 
 TEST(Settle, DroppedStoneComesToRestOnTheTerrain) {

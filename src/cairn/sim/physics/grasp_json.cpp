@@ -12,6 +12,9 @@ nlohmann::json point_or_null(const Eigen::Vector3d& p) {
   return {rounded_json(p.x()), rounded_json(p.y()), rounded_json(p.z())};
 }
 
+/// A diagnostic that is -1 when it was not measured.
+nlohmann::json rounded_or_null(double v) { return v >= 0 ? rounded_json(v) : nlohmann::json(nullptr); }
+
 }  // namespace
 
 nlohmann::json to_json(const GraspTrialResult& r) {
@@ -51,12 +54,12 @@ nlohmann::json to_json(const GraspTrialResult& r) {
           {"placement",
            {{"released_centroid", point_or_null(r.released_centroid)},
             {"rest_centroid", point_or_null(r.rest_centroid)},
-            {"grip_drift", r.grip_drift >= 0 ? nlohmann::json(rounded_json(r.grip_drift)) : nlohmann::json(nullptr)},
-            {"set_down_drift", r.set_down_drift >= 0 ? nlohmann::json(rounded_json(r.set_down_drift)) : nlohmann::json(nullptr)},
+            {"grip_drift", rounded_or_null(r.grip_drift)},
+            {"set_down_drift", rounded_or_null(r.set_down_drift)},
             {"released_on_support", r.released_on_support},
             {"release_touches", r.release_touches},
             {"weighed_com", point_or_null(r.weighed_com)},
-            {"place_correction", r.place_correction >= 0 ? nlohmann::json(rounded_json(r.place_correction)) : nlohmann::json(nullptr)}}},
+            {"place_correction", rounded_or_null(r.place_correction)}}},
           {"release_pose", pose_to_json(r.T_world_release)},
           {"settled", r.settled},
           {"stone_poses", poses},

@@ -685,18 +685,22 @@ class Trial {
     load_lp_ = carried_load_;
   }
 
-  /// The machine's sign that the stone sits on the ground: the arm's load, low-passed over
-  /// place_filter_time (a first touch of a corner rings the stiff contacts for a few steps), has fallen
-  /// by place_support_fraction of the load it carried. Each sample is clipped to [0, carried]
-  /// first: the ring of a first touch swings the load far below zero (-115 kN on a 19 kN stone),
-  /// which alone would drag the low-pass under the threshold while the stone still hangs.
+  /// The machine's sign that the stone sits on the ground: the arm's load has fallen by
+  /// place_support_fraction of the load it carried (load_fell).
   bool set_down() { return load_fell(c_.place_support_fraction); }
 
   /// The stone touches: the same load has fallen by place_touch_fraction (feathering; without it,
   /// the set-down itself).
-  bool touched() { return load_fell(c_.place_touch_fraction > 0 ? c_.place_touch_fraction : c_.place_support_fraction); }
+  bool touched() {
+    const double share = c_.place_touch_fraction > 0 ? c_.place_touch_fraction : c_.place_support_fraction;
+    return load_fell(share);
+  }
 
-  /// One step of the low-passed load (call once per step); true when it has fallen by `share`.
+  /// One step of the arm's load low-passed over place_filter_time (call once per step; a first
+  /// touch of a corner rings the stiff contacts for a few steps); true when it has fallen by
+  /// `share` of the load carried. Each sample is clipped to [0, carried] first: the ring of a
+  /// first touch swings the load far below zero (-115 kN on a 19 kN stone), which alone would
+  /// drag the low-pass under the threshold while the stone still hangs.
   bool load_fell(double share) {
     if (!(carried_load_ > 0.0)) return ground_carries();  // not weighed (a stall in the lift): the contacts
     const double sample = std::clamp(scene_.arm_load(), 0.0, carried_load_);
@@ -705,7 +709,9 @@ class Trial {
   }
 
   /// Feathering after the touch: straight down at place_touch_speed, at most to the height of
-  /// `to`, until the set-down fires (false) or that height is reached (true).
+  /// `to`, until the set-down fires (false) or that height is reached (true). Straight down keeps
+  /// the touch's x, y and rotation: every lowering to place is vertical (from above the place
+  /// pose, or down from a stall). A touch on the lowering's last step leaves nothing to creep.
   bool creep(const Isometry3d& to) {
     const double end_z = to.translation().z();
     while (target_.translation().z() > end_z) {

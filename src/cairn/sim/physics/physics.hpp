@@ -133,18 +133,20 @@ struct PhysicsConfig {
   /// ends) rather than holding on to the last point of its lowering trajectory, which lies below
   /// the gripper once the ground carries the stone, and pressing towards it while the jaws open
   /// (release drift > 10 cm on 28 of 103 releases instead of 31, docs/simulator-physics.md,
-  /// "Setting down"). false: the former arm.
+  /// "The arm after the set-down, and feathering"). false: the former arm.
   bool place_stop_on_set_down = true;
   /// Feathering the set-down (off by default): once that load has fallen by place_touch_fraction
   /// (the stone touches), the arm goes on straight down at place_touch_speed until the set-down
-  /// fires. At the lowering's own speed (up to ~0.5 m/s mid-segment) the filter's lag lets the arm
+  /// fires. At the lowering's own speed (up to ~0.56 m/s mid-segment) the filter's lag lets the arm
   /// drive on after the ground has taken the stone, pushing it through the grip onto its seat and
   /// often the jaw tips onto the ground. Feathered (0.2, 0.05 m/s), on 140 trials of fresh seeds
   /// the stones moved 3.5 cm in the grip instead of 12.8 (median), 33 releases had a jaw on the
   /// ground instead of 74, but 45 stones moved more than 10 cm after the release instead of 28:
-  /// the push seats them (docs/simulator-physics.md, "Setting down"). 0: no feathering.
+  /// the push seats them (docs/simulator-physics.md, "The arm after the set-down, and
+  /// feathering"). 0: no feathering. A stone not weighed is lowered on its contacts instead.
   double place_touch_fraction = 0.0;
-  double place_touch_speed = 0.05;  // [m/s]
+  /// [m/s] Feathering's lowering speed after the touch (validated even when feathering is off).
+  double place_touch_speed = 0.05;
   /// Placing by weight (GraspPlan::place_com_xy): the load the arm must carry for the weighing
   /// to count, and the largest horizontal shift of the place pose it may command.
   double weigh_min_load = 1000.0;     // [N]
@@ -225,8 +227,10 @@ struct PhysicsConfig {
     v("place_support_fraction", place_support_fraction,
       "share of the carried load the arm's (low-passed) load must lose to end lowering");
     v("place_filter_time", place_filter_time, "[s] time constant of the low-passed load that ends lowering");
-    v("place_stop_on_set_down", place_stop_on_set_down, "the arm stops where it is when the set-down fires (else it presses on to its last command)");
-    v("place_touch_fraction", place_touch_fraction, "share of the carried load the ground takes at the touch that slows the lowering (0: no feathering)");
+    v("place_stop_on_set_down", place_stop_on_set_down,
+      "the arm stops where it is when the set-down fires (else it presses on to its last command)");
+    v("place_touch_fraction", place_touch_fraction,
+      "share of the carried load the ground takes at the touch that slows the lowering (0: no feathering)");
     v("place_touch_speed", place_touch_speed, "[m/s] lowering speed after the touch until the set-down");
     v("weigh_min_load", weigh_min_load, "[N] placing by weight: the least load the weighing counts");
     v("max_place_correction", max_place_correction, "[m] placing by weight: the largest shift of the place pose");
@@ -301,8 +305,8 @@ struct GraspTrialResult {
   Eigen::Vector3d released_centroid = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   Eigen::Vector3d rest_centroid = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   double grip_drift = -1.0;
-  /// ... of which during the lowering to place, from its start to the opening [m] (the ground
-  /// pushing the stone in the grip).
+  /// The stone's motion relative to the gripper from the start of the lowering to place to the
+  /// jaws' opening [m] (the ground pushing it through the grip).
   double set_down_drift = -1.0;
   /// Whether the ground carried the stone (place_support_fraction of its weight) when the jaws
   /// opened, and what the gripper touched then other than the held stone ("jaw_left:terrain").
