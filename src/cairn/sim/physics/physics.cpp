@@ -666,7 +666,7 @@ class Trial {
     r_.released_centroid = stone.translation();
     const Vector3d in_grip = (scene_.gripper_pose().inverse() * stone).translation();
     r_.grip_drift = (in_grip - T_gripper_stone0_.translation()).norm();
-    if (lowering_) r_.set_down_drift = (in_grip - T_gripper_stone_lowering_.translation()).norm();
+    if (in_grip_lowering_) r_.set_down_drift = (in_grip - *in_grip_lowering_).norm();
     r_.released_on_support = ground_carries();
     for (const Contact& c : scene_.contacts()) {
       if (!detail::is_gripper(c.a) || c.b == r_.grasped_stone || detail::is_gripper(c.b)) continue;
@@ -679,8 +679,7 @@ class Trial {
   /// Lowering to place: the load the arm carried (weighed in the hold after the lift) and its
   /// low-passed value from here on.
   void start_lowering() {
-    lowering_ = true;
-    T_gripper_stone_lowering_ = scene_.gripper_pose().inverse() * scene_.stone_body_pose(r_.grasped_stone);
+    in_grip_lowering_ = (scene_.gripper_pose().inverse() * scene_.stone_body_pose(r_.grasped_stone)).translation();
     carried_load_ = weighed_samples_ > 0 ? weighed_load_ / weighed_samples_ : 0.0;
     load_lp_ = carried_load_;
   }
@@ -743,8 +742,7 @@ class Trial {
   Isometry3d target_ = Isometry3d::Identity();
   Isometry3d stone_at_lift_ = Isometry3d::Identity(), T_gripper_stone0_ = Isometry3d::Identity();
   Isometry3d T_gripper_stone1_ = Isometry3d::Identity();
-  Isometry3d T_gripper_stone_lowering_ = Isometry3d::Identity();  // at the start of the lowering to place
-  bool lowering_ = false;
+  std::optional<Vector3d> in_grip_lowering_;  // the stone in the gripper frame when the lowering to place began
   bool gripped_ = false;
   bool lifted_ = false;  // the lift began with a stone between the jaws
   Isometry3d place_;     // the place pose: the plan's, shifted by place_by_weight
