@@ -152,19 +152,23 @@ LocalSurface fit_local_surface(const PointCloud& cloud, const float* count, cons
   // n returns carries 1/n of a single return's range-noise variance.
   const double inv_two_sigma2 = 2.0 / (c.smoothing_radius * c.smoothing_radius);
   s.weights.resize(s.nb.size());
-  double wsum = 0.0;
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d sq = Eigen::Matrix3d::Zero();
+  // Scalar sums (the six distinct second moments): the same products and sums per entry as
+  // Eigen's `w * d * d.transpose()`, without its temporaries (the sanitizer build's hot loop).
+  double wsum = 0.0, sx = 0.0, sy = 0.0, sz = 0.0, xx = 0.0, xy = 0.0, xz = 0.0, yy = 0.0, yz = 0.0, zz = 0.0;
   for (std::size_t k = 0; k < s.nb.size(); ++k) {
-    const Eigen::Vector3d d = cloud.points[s.nb.indices[k]].cast<double>() - anchor;
-    const double w = std::exp(-d.squaredNorm() * inv_two_sigma2) * (count ? double(count[s.nb.indices[k]]) : 1.0);
+    const Vec3f& p = cloud.points[s.nb.indices[k]];
+    const double x = double(p.x()) - anchor.x(), y = double(p.y()) - anchor.y(), z = double(p.z()) - anchor.z();
+    const double w = std::exp(-(x * x + y * y + z * z) * inv_two_sigma2) * (count ? double(count[s.nb.indices[k]]) : 1.0);
     s.weights[k] = w;
     wsum += w;
-    sum += w * d;
-    sq += w * d * d.transpose();
+    const double wx = w * x, wy = w * y, wz = w * z;
+    sx += wx, sy += wy, sz += wz;
+    xx += wx * x, xy += wy * x, xz += wz * x, yy += wy * y, yz += wz * y, zz += wz * z;  // lower triangle
   }
   if (!(wsum > 0.0)) return f;
-  const Eigen::Vector3d mean = sum / wsum;  // relative to the anchor
+  const Eigen::Vector3d mean = Eigen::Vector3d(sx, sy, sz) / wsum;  // relative to the anchor
+  Eigen::Matrix3d sq;
+  sq << xx, xy, xz, xy, yy, yz, xz, yz, zz;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(sq / wsum - mean * mean.transpose());
   const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);
   if (!(ev.sum() > 0.0) || ev[0] / ev.sum() > c.smoothing_max_curvature) return f;
@@ -174,17 +178,27 @@ LocalSurface fit_local_surface(const PointCloud& cloud, const float* count, cons
   f.e1 = es.eigenvectors().col(2);
   f.e2 = es.eigenvectors().col(1);
   if (!c.smoothing_quadratic) return f;
-  Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+  // Normal equations of the weighted height field: the lower triangle of Σ w φ φᵀ and Σ w h φ,
+  // entry by entry (as Eigen's rankUpdate forms them, without its temporaries).
+  constexpr int kTerms = 6;
+  double A_sum[kTerms][kTerms] = {}, b_sum[kTerms] = {};
   for (std::size_t k = 0; k < s.nb.size(); ++k) {
     const Eigen::Vector3d d = cloud.points[s.nb.indices[k]].cast<double>() - f.mean;
     const double x = d.dot(f.e1) / c.smoothing_radius, y = d.dot(f.e2) / c.smoothing_radius;
-    Eigen::Matrix<double, 6, 1> phi;
-    phi << 1.0, x, y, x * x, x * y, y * y;
-    A.selfadjointView<Eigen::Lower>().rankUpdate(phi, s.weights[k]);
-    b += s.weights[k] * d.dot(f.n) * phi;
+    const double phi[kTerms] = {1.0, x, y, x * x, x * y, y * y};
+    const double w = s.weights[k], wh = w * d.dot(f.n);
+    for (int i = 0; i < kTerms; ++i) {
+      const double wp = w * phi[i];
+      for (int j = i; j < kTerms; ++j) A_sum[j][i] += wp * phi[j];
+      b_sum[i] += wh * phi[i];
+    }
   }
-  A = A.selfadjointView<Eigen::Lower>();
+  Eigen::Matrix<double, kTerms, kTerms> A;
+  Eigen::Matrix<double, kTerms, 1> b;
+  for (int i = 0; i < kTerms; ++i) {
+    b[i] = b_sum[i];
+    for (int j = 0; j < kTerms; ++j) A(i, j) = i >= j ? A_sum[i][j] : A_sum[j][i];
+  }
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(A);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return f;  // the plane
   const Eigen::Matrix<double, 6, 1> a = ldlt.solve(b);
