@@ -82,8 +82,21 @@ Tracker::Tracker(const ObjectTrackingConfig& c, const TrackingProgress& progress
   plan_slots();
 }
 
-std::unique_ptr<SurfaceTruth> Tracker::truth() const {
-  return std::make_unique<SurfaceTruth>(machine_.world().site, machine_.base(), kTruthRadius, cfg_.truth_spacing, cfg_.seed);
+std::shared_ptr<const SurfaceTruth> Tracker::truth() const {
+  // The truth's inputs that change during a run: the base and the stones' world-frame meshes
+  // (the terrain, the spacing and the seed are fixed).
+  const sim::Site& site = machine_.world().site;
+  std::vector<double> key(machine_.base().data(), machine_.base().data() + 3);
+  for (const sim::Stone& s : site.stones)
+    for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
+      const Vec3d v = s.mesh.vertices.world(i);
+      key.insert(key.end(), {v.x(), v.y(), v.z()});
+    }
+  if (truth_ == nullptr || key != truth_key_) {
+    truth_ = std::make_shared<const SurfaceTruth>(site, machine_.base(), kTruthRadius, cfg_.truth_spacing, cfg_.seed);
+    truth_key_ = std::move(key);
+  }
+  return truth_;
 }
 
 void Tracker::initial_scan() {

@@ -56,7 +56,9 @@ class Tracker {
   int adopt_new_objects();
 
   // Steps shared by every kind of move.
-  [[nodiscard]] std::unique_ptr<SurfaceTruth> truth() const;
+  /// The true surfaces now: computed again only when a stone moved or the base did (the
+  /// experiments ask for them several times per move; scoring only).
+  [[nodiscard]] std::shared_ptr<const SurfaceTruth> truth() const;
   /// Both grasp edits counted on `map`, the grasp committed, its map edit applied, the stone's
   /// true surface remembered where it was (ghost scoring). Returns the committed operation.
   Operation commit_grasp(MoveRecord& m, const Tracked& tr, const Eigen::Isometry3d& T_MG_grasp, const PointCloud& map,
@@ -107,6 +109,8 @@ class Tracker {
   std::vector<Vec3d> slots_odd_, slots_even_;  // flattest first
   PointCloud former_;  // true surfaces of moved stones at their earlier poses (world)
   std::filesystem::path temporary_;  // the default database, removed with the tracker
+  mutable std::shared_ptr<const SurfaceTruth> truth_;  // truth() for the world state truth_key_
+  mutable std::vector<double> truth_key_;
 };
 
 /// Simulated settings of a tracking run: validated, the world at rest (settle_in_physics on).
