@@ -86,14 +86,15 @@ std::shared_ptr<const SurfaceTruth> Tracker::truth() const {
   // The truth's inputs that change during a run: the base and the stones' world-frame meshes
   // (the terrain, the spacing and the seed are fixed).
   const sim::Site& site = machine_.world().site;
-  std::vector<double> key(machine_.base().data(), machine_.base().data() + 3);
+  const Vec3d base = machine_.base();
+  std::vector<double> key{base.x(), base.y(), base.z()};
   for (const sim::Stone& s : site.stones)
     for (std::size_t i = 0; i < s.mesh.vertices.size(); ++i) {
       const Vec3d v = s.mesh.vertices.world(i);
       key.insert(key.end(), {v.x(), v.y(), v.z()});
     }
   if (truth_ == nullptr || key != truth_key_) {
-    truth_ = std::make_shared<const SurfaceTruth>(site, machine_.base(), kTruthRadius, cfg_.truth_spacing, cfg_.seed);
+    truth_ = std::make_shared<const SurfaceTruth>(site, base, kTruthRadius, cfg_.truth_spacing, cfg_.seed);
     truth_key_ = std::move(key);
   }
   return truth_;
