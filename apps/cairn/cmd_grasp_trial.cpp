@@ -71,13 +71,14 @@ int run_grasp_trial(const GraspTrialArgs& a) {
   }
   sim_cfg.physics = cfg.physics;
   sim_cfg.settle_in_physics = !a.no_settle;
-  sim::SiteSettleResult settled;
-  if (!a.no_settle) spdlog::info("grasp-trial: settling the site of seed {} in the physics", a.seed);
-  sim::Site site = sim::make_site(sim_cfg, a.seed, &settled);
-  const int n = static_cast<int>(site.stones.size());
+  // Refused before the site is settled (seconds): the generator places exactly stones.count.
+  const int n = sim_cfg.site.stones.count;
   if (a.stone < 0 || a.stone >= n) {
     throw InputError("--stone: " + std::to_string(a.stone) + " is not a stone of this site (0.." + std::to_string(n - 1) + ")");
   }
+  sim::SiteSettleResult settled;
+  if (!a.no_settle) spdlog::info("grasp-trial: settling the site of seed {} in the physics", a.seed);
+  sim::Site site = sim::make_site(sim_cfg, a.seed, &settled);
   nlohmann::json settle_json = nullptr;
   if (!a.no_settle) {
     settle_json = sim::to_json(settled);

@@ -83,8 +83,9 @@ Tracker::Tracker(const ObjectTrackingConfig& c, const TrackingProgress& progress
 }
 
 std::shared_ptr<const SurfaceTruth> Tracker::truth() const {
-  // The truth's inputs that change during a run: the base and the stones' world-frame meshes
-  // (the terrain, the spacing and the seed are fixed).
+  // The truth's inputs that a run can change: the stones' world-frame meshes (every move goes
+  // through them; their triangles, the terrain, the spacing and the seed are fixed). The base is
+  // fixed today and in the key all the same.
   const sim::Site& site = machine_.world().site;
   const Vec3d base = machine_.base();
   std::vector<double> key{base.x(), base.y(), base.z()};

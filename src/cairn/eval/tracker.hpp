@@ -57,7 +57,7 @@ class Tracker {
 
   // Steps shared by every kind of move.
   /// The true surfaces now: computed again only when a stone moved or the base did (the
-  /// experiments ask for them several times per move; scoring only).
+  /// experiments ask for them several times per move; scoring only). Not thread-safe (a cache).
   [[nodiscard]] std::shared_ptr<const SurfaceTruth> truth() const;
   /// Both grasp edits counted on `map`, the grasp committed, its map edit applied, the stone's
   /// true surface remembered where it was (ghost scoring). Returns the committed operation.

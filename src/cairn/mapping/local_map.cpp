@@ -119,6 +119,8 @@ PointCloud LocalMap::compute_snapshot() const {
 
 namespace {
 
+constexpr int kHeightTerms = 6;  // a0..a5 of the quadratic height field below
+
 // Moving least squares around one anchor: the weighted plane of the anchor's neighbourhood and,
 // over it (when `quadratic`), a weighted quadratic height field h(x, y) = a0 + a1 x + a2 y +
 // a3 x^2 + a4 xy + a5 y^2, with x and y scaled by 1/radius (conditioning) and centred at the
@@ -126,7 +128,7 @@ namespace {
 struct LocalSurface {
   bool valid = false;
   Eigen::Vector3d mean, n, e1, e2;
-  Eigen::Matrix<double, 6, 1> a = Eigen::Matrix<double, 6, 1>::Zero();  // zero: the plane
+  Eigen::Matrix<double, kHeightTerms, 1> a = Eigen::Matrix<double, kHeightTerms, 1>::Zero();  // zero: the plane
 
   /// `p` moved along the normal onto the surface.
   [[nodiscard]] Vec3f project(const Vec3f& p, double radius) const {
@@ -142,18 +144,19 @@ struct SmoothingScratch {
   std::vector<double> weights;
 };
 
-LocalSurface fit_local_surface(const PointCloud& cloud, const float* count, const KdTree& tree,
-                               const Eigen::Vector3d& anchor, const LocalMapConfig& c, SmoothingScratch& s) {
-  constexpr std::size_t kMinPlane = 6, kMinQuadratic = 10;  // 3 and 6 unknowns, with margin
-  LocalSurface f;
-  tree.radius(anchor.cast<float>(), float(c.smoothing_radius), s.nb);
-  if (s.nb.size() < (c.smoothing_quadratic ? kMinQuadratic : kMinPlane)) return f;
+// The sums below are written out as scalars, the same products and sums per entry as Eigen's
+// outer products formed them (outputs byte-identical as long as the compiler contracts nothing to
+// FMA, as with the default x86-64 flags), without Eigen's temporaries: this is the hottest loop
+// of the sanitizer build.
+
+/// The weighted plane of the neighbourhood s.nb around `anchor` (f.mean, f.n, f.e1, f.e2; the
+/// weights kept in s.weights). False where there is no weight or it is not a surface.
+bool fit_weighted_plane(const PointCloud& cloud, const float* count, const Eigen::Vector3d& anchor,
+                        const LocalMapConfig& c, SmoothingScratch& s, LocalSurface& f) {
   // Gaussian weights (sigma = radius / 2) times the number of returns of the voxel: a centroid of
   // n returns carries 1/n of a single return's range-noise variance.
   const double inv_two_sigma2 = 2.0 / (c.smoothing_radius * c.smoothing_radius);
   s.weights.resize(s.nb.size());
-  // Scalar sums (the six distinct second moments): the same products and sums per entry as
-  // Eigen's `w * d * d.transpose()`, without its temporaries (the sanitizer build's hot loop).
   double wsum = 0.0, sx = 0.0, sy = 0.0, sz = 0.0, xx = 0.0, xy = 0.0, xz = 0.0, yy = 0.0, yz = 0.0, zz = 0.0;
   for (std::size_t k = 0; k < s.nb.size(); ++k) {
     const Vec3f& p = cloud.points[s.nb.indices[k]];
@@ -163,46 +166,61 @@ LocalSurface fit_local_surface(const PointCloud& cloud, const float* count, cons
     wsum += w;
     const double wx = w * x, wy = w * y, wz = w * z;
     sx += wx, sy += wy, sz += wz;
-    xx += wx * x, xy += wy * x, xz += wz * x, yy += wy * y, yz += wz * y, zz += wz * z;  // lower triangle
+    // The lower triangle, which is all the eigen solver reads.
+    xx += wx * x, xy += wy * x, xz += wz * x, yy += wy * y, yz += wz * y, zz += wz * z;
   }
-  if (!(wsum > 0.0)) return f;
+  if (!(wsum > 0.0)) return false;
   const Eigen::Vector3d mean = Eigen::Vector3d(sx, sy, sz) / wsum;  // relative to the anchor
   Eigen::Matrix3d sq;
   sq << xx, xy, xz, xy, yy, yz, xz, yz, zz;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(sq / wsum - mean * mean.transpose());
   const Eigen::Vector3d ev = es.eigenvalues().cwiseMax(0.0);
-  if (!(ev.sum() > 0.0) || ev[0] / ev.sum() > c.smoothing_max_curvature) return f;
-  f.valid = true;
+  if (!(ev.sum() > 0.0) || ev[0] / ev.sum() > c.smoothing_max_curvature) return false;
   f.mean = anchor + mean;
   f.n = es.eigenvectors().col(0);
   f.e1 = es.eigenvectors().col(2);
   f.e2 = es.eigenvectors().col(1);
-  if (!c.smoothing_quadratic) return f;
-  // Normal equations of the weighted height field: the lower triangle of Σ w φ φᵀ and Σ w h φ,
-  // entry by entry (as Eigen's rankUpdate forms them, without its temporaries).
-  constexpr int kTerms = 6;
-  double A_sum[kTerms][kTerms] = {}, b_sum[kTerms] = {};
+  return true;
+}
+
+/// The weighted quadratic height field over f's plane (f.a; left zero, the plane, where the
+/// normal equations are not positive definite).
+void fit_height_field(const PointCloud& cloud, const LocalMapConfig& c, const SmoothingScratch& s, LocalSurface& f) {
+  constexpr int n = kHeightTerms;
+  // The lower triangle of Σ w φ φᵀ and Σ w h φ, as Eigen's rankUpdate formed them.
+  double A_sum[n][n] = {}, b_sum[n] = {};
   for (std::size_t k = 0; k < s.nb.size(); ++k) {
     const Eigen::Vector3d d = cloud.points[s.nb.indices[k]].cast<double>() - f.mean;
     const double x = d.dot(f.e1) / c.smoothing_radius, y = d.dot(f.e2) / c.smoothing_radius;
-    const double phi[kTerms] = {1.0, x, y, x * x, x * y, y * y};
+    const double phi[n] = {1.0, x, y, x * x, x * y, y * y};
     const double w = s.weights[k], wh = w * d.dot(f.n);
-    for (int i = 0; i < kTerms; ++i) {
+    for (int i = 0; i < n; ++i) {
       const double wp = w * phi[i];
-      for (int j = i; j < kTerms; ++j) A_sum[j][i] += wp * phi[j];
+      for (int j = i; j < n; ++j) A_sum[j][i] += wp * phi[j];
       b_sum[i] += wh * phi[i];
     }
   }
-  Eigen::Matrix<double, kTerms, kTerms> A;
-  Eigen::Matrix<double, kTerms, 1> b;
-  for (int i = 0; i < kTerms; ++i) {
+  Eigen::Matrix<double, n, n> A;
+  Eigen::Matrix<double, n, 1> b;
+  for (int i = 0; i < n; ++i) {
     b[i] = b_sum[i];
-    for (int j = 0; j < kTerms; ++j) A(i, j) = i >= j ? A_sum[i][j] : A_sum[j][i];
+    for (int j = 0; j < n; ++j) A(i, j) = i >= j ? A_sum[i][j] : A_sum[j][i];
   }
-  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(A);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return f;  // the plane
-  const Eigen::Matrix<double, 6, 1> a = ldlt.solve(b);
+  const Eigen::LDLT<Eigen::Matrix<double, n, n>> ldlt(A);
+  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return;  // the plane
+  const Eigen::Matrix<double, n, 1> a = ldlt.solve(b);
   if (a.allFinite()) f.a = a;
+}
+
+LocalSurface fit_local_surface(const PointCloud& cloud, const float* count, const KdTree& tree,
+                               const Eigen::Vector3d& anchor, const LocalMapConfig& c, SmoothingScratch& s) {
+  constexpr std::size_t kMinPlane = 6, kMinQuadratic = 10;  // 3 and 6 unknowns, with margin
+  LocalSurface f;
+  tree.radius(anchor.cast<float>(), float(c.smoothing_radius), s.nb);
+  if (s.nb.size() < (c.smoothing_quadratic ? kMinQuadratic : kMinPlane)) return f;
+  if (!fit_weighted_plane(cloud, count, anchor, c, s, f)) return f;
+  f.valid = true;
+  if (c.smoothing_quadratic) fit_height_field(cloud, c, s, f);
   return f;
 }
 

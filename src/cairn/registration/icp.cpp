@@ -150,14 +150,16 @@ void accumulate(const Problem& pb, const Eigen::Isometry3d& T, std::size_t begin
       const Vec3d n = normals[j].cast<double>();
       if (n.squaredNorm() == 0.0) continue;  // target point without a normal
       const double r = n.dot(diff);          // Sec. 4.2 / 4.4: point-to-plane residual nᵀ(Tp − q)
+      constexpr int kDof = Vec6::SizeAtCompileTime;  // [ω; v]
       const Vec3d pxn = p.cross(n);
-      const double J[6] = {pxn.x(), pxn.y(), pxn.z(), n.x(), n.y(), n.z()};
+      const double J[kDof] = {pxn.x(), pxn.y(), pxn.z(), n.x(), n.y(), n.z()};
       const double w = pb.kernel.weight(r), wr = w * r;
       // H += (w J) Jᵀ and b += (w r) J entry by entry: the products and sums of Eigen's outer
-      // product, without its temporaries (the sanitizer build's mapping loop).
-      for (int row = 0; row < 6; ++row) {
+      // product (byte-identical without FMA contraction), without its temporaries (the
+      // sanitizer build's mapping loop).
+      for (int row = 0; row < kDof; ++row) {
         const double wJ = w * J[row];
-        for (int col = 0; col < 6; ++col) out.H(row, col) += wJ * J[col];
+        for (int col = 0; col < kDof; ++col) out.H(row, col) += wJ * J[col];
         out.b[row] += wr * J[row];
       }
       out.error += pb.kernel.rho(r);

@@ -164,7 +164,10 @@ Site make_site(const SimulationConfig& config, std::uint64_t seed, SiteSettleRes
 }
 
 SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed) {
-  Site site = make_site(config, seed);
+  return make_world(config, make_site(config, seed));
+}
+
+SimulatedWorld make_world(const SimulationConfig& config, Site site) {
   Excavator excavator(config.excavator, config.gripper, site.terrain);
   RayScene scene = make_world_scene(site, config.terrain_mesh_spacing);
   return SimulatedWorld{std::move(site), std::move(excavator), std::move(scene)};
@@ -289,16 +292,20 @@ Sweep simulate_scheduled_sweep(const SimulatedWorld& world, const LidarConfig& l
 
 namespace {
 
-void prepare_run_directory(const fs::path& out, bool overwrite) {
+/// Throws when `out` cannot take a new run: not a directory, not empty without `overwrite`, or
+/// not a run directory (only ever delete what a previous simulation wrote).
+void check_run_directory(const fs::path& out, bool overwrite) {
   if (fs::exists(out) && !fs::is_directory(out)) throw InputError(out.string() + ": exists and is not a directory");
   if (fs::exists(out) && !fs::is_empty(out) && !overwrite) {
     throw InputError(out.string() + ": directory is not empty (use --overwrite to replace it)");
   }
-  if (fs::exists(out) && overwrite) {
-    // Only ever delete what a previous simulation wrote.
-    if (!fs::exists(out / "run.json")) throw InputError(out.string() + ": not a run directory; refusing to overwrite it");
-    fs::remove_all(out);
-  }
+  if (fs::exists(out) && overwrite && !fs::exists(out / "run.json"))
+    throw InputError(out.string() + ": not a run directory; refusing to overwrite it");
+}
+
+void prepare_run_directory(const fs::path& out, bool overwrite) {
+  check_run_directory(out, overwrite);
+  if (fs::exists(out) && overwrite) fs::remove_all(out);
 }
 
 /// The site at t = 0: stone meshes, site.json, the terrain, the dense labelled snapshot.
@@ -564,10 +571,13 @@ SimulationSummary simulate_run(const std::string& scenario, const SimulationConf
                                const std::vector<StoneMove>& moves) {
   if (!(duration > 0) || !std::isfinite(duration)) throw ConfigError("simulate: duration must be positive");
   validate(config.lidar);  // fail before any file is written
+  // Bad input refused before the site is generated and settled (seconds): the generator places
+  // exactly stones.count stones or throws.
+  validate_moves(moves, std::size_t(std::max(config.site.stones.count, 0)), duration, config);
+  check_run_directory(out, overwrite);
   Stopwatch total, sw;
   SimulationSummary summary{.scenario = scenario, .seed = seed, .duration = duration};
   SimulatedWorld world = make_world(config, seed);
-  validate_moves(moves, world.site.stones.size(), duration, config);
   prepare_run_directory(out, overwrite);  // after every check: a bad input never removes an old run
   for (const auto* dir : {"scans/H", "scans/V", "state", "drone/sparse", "truth/scans/H", "truth/scans/V", "truth/stones"}) {
     fs::create_directories(out / dir);

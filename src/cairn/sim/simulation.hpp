@@ -125,6 +125,9 @@ struct SimulatedWorld {
   std::unique_ptr<RayScene> held_scene;  // the held stone's mesh in the gripper frame
 };
 SimulatedWorld make_world(const SimulationConfig& config, std::uint64_t seed);
+/// The machine and the ray-cast scene around a site made before (make_site): one settling for
+/// several worlds of the same site.
+SimulatedWorld make_world(const SimulationConfig& config, Site site);
 
 /// Stone k taken into the gripper at time t (issue #15 item 2: the sweeps see the arm with the
 /// stone while it is carried). From t on the arm holds config.excavator.carry with the jaws closed
