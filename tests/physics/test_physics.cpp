@@ -208,36 +208,51 @@ TEST(GraspTrial, TheJawsOpenOnlyOnceTheGroundCarriesTheStone) {
 //   of holding on to its last, deeper command while the jaws open.
 // - Feathering (place_touch_fraction, place_touch_speed) keeps the jaws off the ground; off by
 //   default: stones seated less firmly move more after the release (docs/simulator-physics.md).
+// - Converging jaws swing their tips forwards as they open: tips on the ground cannot open unless
+//   the arm backs off while they open (PhysicsConfig::release_backoff, default).
 TEST(GraspTrial, TheSetDownStopsTheArmAndFeatheringKeepsTheJawsOffTheGround) {
   const Site site = flat_box_site();
   const GripperConfig gripper;
   const GraspPlan plan = off_centre_box_pressed_down(site, gripper);
-  const auto run = [&](const char* name, bool stop, double touch_fraction) {
+  const auto run = [&](const char* name, bool stop, double touch_fraction, bool backoff) {
     PhysicsConfig c = fast_config();
     c.place_stop_on_set_down = stop;
     c.place_touch_fraction = touch_fraction;
+    c.release_backoff = backoff;
     GraspTrialResult r = run_grasp_trial(site, plan, gripper, c);
     std::printf("%s: the box moved %.3f m in the grip while set down; jaws on the ground: %zu; release command z "
-                "%.3f m; arm load while opening down to %.0f kN; the box fell %.3f m after the release\n",
+                "%.3f m; arm load while opening down to %.0f kN; the jaws opened %.3f m (backing off %.3f m); the box "
+                "fell %.3f m after the release\n",
                 name, r.set_down_drift, r.release_touches.size(), r.T_world_release.translation().z(),
-                min_load(r, "release") / 1000.0, r.released_centroid.z() - r.rest_centroid.z());
+                min_load(r, "release") / 1000.0, r.release_opened, r.release_backoff,
+                r.released_centroid.z() - r.rest_centroid.z());
     EXPECT_TRUE(r.success) << name << ": " << r.message;
     return r;
   };
-  const GraspTrialResult stopped = run("stops where set down (default)", true, 0.0);
-  const GraspTrialResult pressing = run("presses on (before)", false, 0.0);
-  const GraspTrialResult feathered = run("feathered", true, 0.2);
+  const GraspTrialResult stopped = run("stops where set down (default)", true, 0.0, true);
+  const GraspTrialResult pressing = run("presses on (before)", false, 0.0, true);
+  const GraspTrialResult feathered = run("feathered", true, 0.2, true);
+  const GraspTrialResult still = run("stops, the arm still while the jaws open (before)", true, 0.0, false);
   // Measured: the stopped arm's command at the opening 0.999 m, the pressing arm's 0.972 m.
   EXPECT_GT(stopped.T_world_release.translation().z(), pressing.T_world_release.translation().z() + 0.01);
   // Measured: without feathering the box moved 0.159 m in the grip while set down and both jaw
-  // tips ended on the ground (the arm's load while the jaws opened: -206 kN most of the time, its
-  // first sample -7.9 MN; the jaws could not open against tips pressed into the ground, a known
-  // defect, docs/simulator-physics.md). Feathered: 0.105 m, no jaw on the ground, -7 kN.
+  // tips ended on the ground. Feathered: 0.105 m, no jaw on the ground, -7 kN.
   EXPECT_GE(stopped.set_down_drift, 0.0);
   EXPECT_LT(feathered.set_down_drift, stopped.set_down_drift - 0.02);
   EXPECT_TRUE(feathered.release_touches.empty()) << feathered.release_touches.front();
   EXPECT_GT(min_load(feathered, "release"), -20e3);
   EXPECT_LT(feathered.released_centroid.z() - feathered.rest_centroid.z(), 0.02);  // it lay flat
+  // The tips on the ground: with the arm still the jaws could not open (measured: 2 mm in the
+  // release phase; the arm's load -7.9 MN in its first sample); backing off 3.2 cm they open
+  // 0.327 m, to the plan's opening.
+  ASSERT_FALSE(stopped.release_touches.empty());
+  EXPECT_GT(stopped.release_backoff, 0.0);
+  EXPECT_LE(stopped.release_backoff, fast_config().release_backoff_max + 1e-9);
+  const std::vector<TraceSample> opening = trace_in(stopped, "release");
+  ASSERT_FALSE(opening.empty());
+  EXPECT_GE(opening.back().opening, plan.opening - fast_config().release_open_tolerance);
+  EXPECT_GT(stopped.release_opened, still.release_opened + 0.1);
+  EXPECT_LT(stopped.released_centroid.z() - stopped.rest_centroid.z(), 0.02);
 }
 
 TEST(GraspTrial, TraceCarriesTheStoneWeightAndASteadyJaw) {
@@ -562,6 +577,19 @@ TEST(GraspTrial, RejectsInvalidInput) {
     bad = fast_config();
     bad.place_touch_speed = speed;
     EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError) << speed;
+  }
+  for (const double speed : {0.0, -0.1, nan, inf}) {  // the release's back-off
+    bad = fast_config();
+    bad.release_backoff_speed = speed;
+    EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError) << speed;
+  }
+  for (const double length : {-0.1, nan, inf}) {
+    bad = fast_config();
+    bad.release_backoff_max = length;
+    EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError) << length;
+    bad = fast_config();
+    bad.release_open_tolerance = length;
+    EXPECT_THROW(run_grasp_trial(site, plan, gripper, bad), ConfigError) << length;
   }
 }
 

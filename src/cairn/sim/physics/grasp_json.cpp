@@ -58,6 +58,8 @@ nlohmann::json to_json(const GraspTrialResult& r) {
             {"set_down_drift", rounded_or_null(r.set_down_drift)},
             {"released_on_support", r.released_on_support},
             {"release_touches", r.release_touches},
+            {"release_opened", std::isfinite(r.release_opened) ? rounded_json(r.release_opened) : nlohmann::json(nullptr)},
+            {"release_backoff", rounded_json(r.release_backoff)},
             {"weighed_com", point_or_null(r.weighed_com)},
             {"place_correction", rounded_or_null(r.place_correction)}}},
           {"release_pose", pose_to_json(r.T_world_release)},

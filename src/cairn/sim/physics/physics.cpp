@@ -241,7 +241,7 @@ class Trial {
  public:
   Trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
         const PhysicsConfig& config)
-      : plan_(plan), c_(config), closed_gap_(gripper.closed_gap), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
+      : plan_(plan), c_(config), gripper_(gripper), closed_gap_(gripper.closed_gap), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
         scene_(site, spec(site, plan, gripper, config, pre_grasp_), gripper, config), place_(plan.T_world_place) {
     target_ = pre_grasp_;
     scene_.set_gripper_target(target_);
@@ -303,10 +303,7 @@ class Trial {
       }
       r_.T_world_release = target_;
       record_release();
-      phase("release", [&] {
-        scene_.set_jaw_command(-1.0);
-        return wait(c_.release_time, [] { return true; });
-      });
+      phase("release", [&] { return release(); });
       phase("retreat", [&] {
         return move(target_ * Eigen::Translation3d(-plan_.approach_distance, 0, 0), c_.approach_speed, false,
                     [] { return true; });
@@ -676,6 +673,27 @@ class Trial {
     }
   }
 
+  /// The jaws open at the place pose for release_time; with release_backoff the arm backs off
+  /// along the approach while the encoder says they are not yet open (tips on the ground).
+  bool release() {
+    const double opening = scene_.opening(), end = scene_.time() + c_.release_time;
+    scene_.set_jaw_command(-1.0);
+    double backed = 0.0;
+    while (scene_.time() < end) {
+      const bool open = scene_.opening() >= plan_.opening - c_.release_open_tolerance;
+      if (c_.release_backoff && !open && backed < c_.release_backoff_max) {
+        const double ds = std::min(c_.release_backoff_speed * c_.timestep, c_.release_backoff_max - backed);
+        target_.translation() -= ds * target_.linear().col(0);
+        backed += ds;
+        scene_.set_gripper_target(target_);
+      }
+      step();
+    }
+    r_.release_backoff = backed;
+    if (lifted_ && r_.grasped_stone >= 0) r_.release_opened = scene_.opening() - opening;
+    return true;
+  }
+
   /// Lowering to place: the load the arm carried (weighed in the hold after the lift) and its
   /// low-passed value from here on.
   void start_lowering() {
@@ -736,6 +754,7 @@ class Trial {
 
   const GraspPlan& plan_;
   const PhysicsConfig& c_;
+  const GripperConfig& gripper_;
   double closed_gap_ = 0.0;
   Isometry3d pre_grasp_;
   Scene scene_;
@@ -803,6 +822,8 @@ void validate(const PhysicsConfig& c) {
   require(c.place_touch_fraction >= 0 && c.place_touch_fraction < c.place_support_fraction,
           "place_touch_fraction must be in [0, place_support_fraction)");
   require(positive(c.place_touch_speed), "place_touch_speed must be > 0");
+  require(positive(c.release_backoff_speed) && non_negative(c.release_backoff_max) && non_negative(c.release_open_tolerance),
+          "release_backoff_speed must be > 0, release_backoff_max and release_open_tolerance >= 0");
   require(non_negative(c.weigh_min_load) && non_negative(c.max_place_correction),
           "weigh_min_load and max_place_correction must be >= 0");
   require(non_negative(c.free_margin) && non_negative(c.island_gap), "free_margin and island_gap must be >= 0");

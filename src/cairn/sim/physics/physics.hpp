@@ -147,6 +147,17 @@ struct PhysicsConfig {
   double place_touch_fraction = 0.0;
   /// [m/s] Feathering's lowering speed after the touch (validated even when feathering is off).
   double place_touch_speed = 0.05;
+  /// The release: converging jaws (a stone narrower than the pivots' spacing) swing their tips
+  /// forwards and outwards as they open, so tips that stand on the ground when the stone is set
+  /// down cannot open against it (the opening unchanged through the release phase, the arm's load
+  /// -1 MN: docs/simulator-physics.md, "The release"). With release_backoff the arm backs off
+  /// along the approach at release_backoff_speed while the jaws are not yet open (the encoder: the
+  /// opening more than release_open_tolerance short of the plan's), at most release_backoff_max
+  /// (the operator's lift while opening). false: the arm holds still while the jaws open.
+  bool release_backoff = true;
+  double release_backoff_speed = 0.1;   // [m/s]
+  double release_backoff_max = 0.3;     // [m]
+  double release_open_tolerance = 0.02; // [m]
   /// Placing by weight (GraspPlan::place_com_xy): the load the arm must carry for the weighing
   /// to count, and the largest horizontal shift of the place pose it may command.
   double weigh_min_load = 1000.0;     // [N]
@@ -232,6 +243,10 @@ struct PhysicsConfig {
     v("place_touch_fraction", place_touch_fraction,
       "share of the carried load the ground takes at the touch that slows the lowering (0: no feathering)");
     v("place_touch_speed", place_touch_speed, "[m/s] lowering speed after the touch until the set-down");
+    v("release_backoff", release_backoff, "the arm backs off along the approach while the jaws are not yet open");
+    v("release_backoff_speed", release_backoff_speed, "[m/s] release_backoff: speed of the back-off");
+    v("release_backoff_max", release_backoff_max, "[m] release_backoff: the farthest back-off");
+    v("release_open_tolerance", release_open_tolerance, "[m] release_backoff: jaws this close to the plan's opening are open");
     v("weigh_min_load", weigh_min_load, "[N] placing by weight: the least load the weighing counts");
     v("max_place_correction", max_place_correction, "[m] placing by weight: the largest shift of the place pose");
     v("abort_on_failure", abort_on_failure, "open, retract and settle as soon as a grasp fails");
@@ -312,6 +327,11 @@ struct GraspTrialResult {
   /// opened, and what the gripper touched then other than the held stone ("jaw_left:terrain").
   bool released_on_support = false;
   std::vector<std::string> release_touches;
+  /// How far the jaws opened during the release phase [m] (NaN: no release of a lifted stone):
+  /// about the plan's opening minus the closed one when they opened freely, ~0 when their tips
+  /// were held by the ground.
+  double release_opened = std::numeric_limits<double>::quiet_NaN();
+  double release_backoff = 0.0;  // [m] how far the arm backed off while the jaws opened (release_backoff)
   /// Placing by weight (GraspPlan::place_com_xy): the centre of mass the arm weighed while the
   /// stone hung still (world; x, y measured, z the gripper's; NaN when not weighed) and the
   /// horizontal shift of the place pose it commanded (-1: none).
