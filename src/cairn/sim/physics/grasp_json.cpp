@@ -15,6 +15,9 @@ nlohmann::json point_or_null(const Eigen::Vector3d& p) {
 /// A diagnostic that is -1 when it was not measured.
 nlohmann::json rounded_or_null(double v) { return v >= 0 ? rounded_json(v) : nlohmann::json(nullptr); }
 
+/// A diagnostic that is NaN when it was not measured.
+nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? rounded_json(v) : nlohmann::json(nullptr); }
+
 }  // namespace
 
 nlohmann::json to_json(const GraspTrialResult& r) {
@@ -58,7 +61,7 @@ nlohmann::json to_json(const GraspTrialResult& r) {
             {"set_down_drift", rounded_or_null(r.set_down_drift)},
             {"released_on_support", r.released_on_support},
             {"release_touches", r.release_touches},
-            {"release_opened", std::isfinite(r.release_opened) ? rounded_json(r.release_opened) : nlohmann::json(nullptr)},
+            {"release_opened", finite_or_null(r.release_opened)},
             {"release_backoff", rounded_json(r.release_backoff)},
             {"weighed_com", point_or_null(r.weighed_com)},
             {"place_correction", rounded_or_null(r.place_correction)}}},

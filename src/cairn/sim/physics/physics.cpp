@@ -241,7 +241,7 @@ class Trial {
  public:
   Trial(const Site& site, const GraspPlan& plan, const GripperConfig& gripper,
         const PhysicsConfig& config)
-      : plan_(plan), c_(config), gripper_(gripper), closed_gap_(gripper.closed_gap), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
+      : plan_(plan), c_(config), closed_gap_(gripper.closed_gap), pre_grasp_(plan.T_world_gripper * Eigen::Translation3d(-plan.approach_distance, 0, 0)),
         scene_(site, spec(site, plan, gripper, config, pre_grasp_), gripper, config), place_(plan.T_world_place) {
     target_ = pre_grasp_;
     scene_.set_gripper_target(target_);
@@ -301,12 +301,13 @@ class Trial {
           return reached;
         });
       }
-      r_.T_world_release = target_;
+      r_.T_world_release = target_;  // Eq. 3: the gripper where the jaws are commanded open (before any back-off)
       record_release();
       phase("release", [&] { return release(); });
+      // To the planned retreat pose (swept_boxes), whatever the release backed off.
       phase("retreat", [&] {
-        return move(target_ * Eigen::Translation3d(-plan_.approach_distance, 0, 0), c_.approach_speed, false,
-                    [] { return true; });
+        return move(r_.T_world_release * Eigen::Translation3d(-plan_.approach_distance, 0, 0), c_.approach_speed,
+                    false, [] { return true; });
       });
     } else {
       r_.T_world_release = target_;
@@ -674,13 +675,14 @@ class Trial {
   }
 
   /// The jaws open at the place pose for release_time; with release_backoff the arm backs off
-  /// along the approach while the encoder says they are not yet open (tips on the ground).
+  /// along the approach until the encoder reads them open (tips on the ground open only so).
   bool release() {
     const double opening = scene_.opening(), end = scene_.time() + c_.release_time;
     scene_.set_jaw_command(-1.0);
     double backed = 0.0;
+    bool open = false;  // latched: the back-off ends once the jaws have opened
     while (scene_.time() < end) {
-      const bool open = scene_.opening() >= plan_.opening - c_.release_open_tolerance;
+      open = open || scene_.opening() >= plan_.opening - c_.release_open_tolerance;
       if (c_.release_backoff && !open && backed < c_.release_backoff_max) {
         const double ds = std::min(c_.release_backoff_speed * c_.timestep, c_.release_backoff_max - backed);
         target_.translation() -= ds * target_.linear().col(0);
@@ -754,7 +756,6 @@ class Trial {
 
   const GraspPlan& plan_;
   const PhysicsConfig& c_;
-  const GripperConfig& gripper_;
   double closed_gap_ = 0.0;
   Isometry3d pre_grasp_;
   Scene scene_;
@@ -822,7 +823,8 @@ void validate(const PhysicsConfig& c) {
   require(c.place_touch_fraction >= 0 && c.place_touch_fraction < c.place_support_fraction,
           "place_touch_fraction must be in [0, place_support_fraction)");
   require(positive(c.place_touch_speed), "place_touch_speed must be > 0");
-  require(positive(c.release_backoff_speed) && non_negative(c.release_backoff_max) && non_negative(c.release_open_tolerance),
+  require(positive(c.release_backoff_speed) && non_negative(c.release_backoff_max) &&
+              non_negative(c.release_open_tolerance),
           "release_backoff_speed must be > 0, release_backoff_max and release_open_tolerance >= 0");
   require(non_negative(c.weigh_min_load) && non_negative(c.max_place_correction),
           "weigh_min_load and max_place_correction must be >= 0");

@@ -150,14 +150,15 @@ struct PhysicsConfig {
   /// The release: converging jaws (a stone narrower than the pivots' spacing) swing their tips
   /// forwards and outwards as they open, so tips that stand on the ground when the stone is set
   /// down cannot open against it (the opening unchanged through the release phase, the arm's load
-  /// -1 MN: docs/simulator-physics.md, "The release"). With release_backoff the arm backs off
-  /// along the approach at release_backoff_speed while the jaws are not yet open (the encoder: the
-  /// opening more than release_open_tolerance short of the plan's), at most release_backoff_max
-  /// (the operator's lift while opening). false: the arm holds still while the jaws open.
+  /// -496 kN in its second half, median: docs/simulator-physics.md, "The release"). With
+  /// release_backoff the arm backs off along the approach at release_backoff_speed while the jaws
+  /// open, until the encoder reads the opening within release_open_tolerance of the plan's, at
+  /// most release_backoff_max and never beyond the release phase (release_time): the operator's
+  /// lift while opening. false: the arm holds still while the jaws open.
   bool release_backoff = true;
-  double release_backoff_speed = 0.1;   // [m/s]
-  double release_backoff_max = 0.3;     // [m]
-  double release_open_tolerance = 0.02; // [m]
+  double release_backoff_speed = 0.1;    // [m/s]
+  double release_backoff_max = 0.1;      // [m]
+  double release_open_tolerance = 0.02;  // [m]
   /// Placing by weight (GraspPlan::place_com_xy): the load the arm must carry for the weighing
   /// to count, and the largest horizontal shift of the place pose it may command.
   double weigh_min_load = 1000.0;     // [N]
@@ -327,11 +328,12 @@ struct GraspTrialResult {
   /// opened, and what the gripper touched then other than the held stone ("jaw_left:terrain").
   bool released_on_support = false;
   std::vector<std::string> release_touches;
-  /// How far the jaws opened during the release phase [m] (NaN: no release of a lifted stone):
+  /// Machine signals of the release (the encoder, the arm's own command): how far the jaws opened
+  /// during the release phase [m] (NaN: no release phase with a lifted stone):
   /// about the plan's opening minus the closed one when they opened freely, ~0 when their tips
   /// were held by the ground.
   double release_opened = std::numeric_limits<double>::quiet_NaN();
-  double release_backoff = 0.0;  // [m] how far the arm backed off while the jaws opened (release_backoff)
+  double release_backoff = 0.0;  // [m] ... and how far the arm backed off meanwhile (release_backoff)
   /// Placing by weight (GraspPlan::place_com_xy): the centre of mass the arm weighed while the
   /// stone hung still (world; x, y measured, z the gripper's; NaN when not weighed) and the
   /// horizontal shift of the place pose it commanded (-1: none).
