@@ -13,6 +13,7 @@
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/io/trajectory.hpp"
+#include "cairn/eval/map_scoring.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "commands.hpp"
 
@@ -27,7 +28,7 @@ void write_trajectory(const std::filesystem::path& file, const std::vector<Stamp
   io::write_tum_trajectory(file, tum);
 }
 
-nlohmann::json error_json(const TrajectoryError& e) {
+nlohmann::json error_json(const eval::TrajectoryError& e) {
   return {{"ate_rmse_m", e.ate_rmse}, {"ate_rmse_without_mean_m", e.ate_rmse_without_mean}, {"mean_error_m", {e.mean_error.x(), e.mean_error.y(), e.mean_error.z()}},
           {"ate_max_m", e.ate_max}, {"rotation_rmse_deg", e.rotation_rmse_deg},
           {"poses", e.num}};
@@ -96,8 +97,8 @@ void add_map_command(CLI::App& app, std::function<int()>& run) {
       const auto truth_file = rd ? rd->truth_dir() / "cabin_poses.tum" : std::filesystem::path{};
       if (rd && std::filesystem::exists(truth_file)) {
         const std::vector<StampedPose> truth = io::read_stamped_poses(truth_file);
-        j["ate_raw"] = error_json(trajectory_error(r.raw_trajectory, truth));
-        j["ate_mapped"] = error_json(trajectory_error(r.trajectory, truth));
+        j["ate_raw"] = error_json(eval::trajectory_error(r.raw_trajectory, truth));
+        j["ate_mapped"] = error_json(eval::trajectory_error(r.trajectory, truth));
       }
       std::cout << j.dump(2) << std::endl;
       return kExitOk;

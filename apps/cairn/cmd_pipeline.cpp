@@ -14,6 +14,7 @@
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/io/trajectory.hpp"
+#include "cairn/eval/map_scoring.hpp"
 #include "cairn/eval/registration_scoring.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/segmentation/evaluation.hpp"
@@ -36,7 +37,7 @@ struct PipelineArgs {
   CommonOptions common;
 };
 
-nlohmann::json ate_json(const TrajectoryError& e) {
+nlohmann::json ate_json(const eval::TrajectoryError& e) {
   return {{"rmse_m", e.ate_rmse}, {"rmse_without_mean_m", e.ate_rmse_without_mean}, {"rotation_rmse_deg", e.rotation_rmse_deg}};
 }
 
@@ -88,8 +89,8 @@ int run_pipeline(const PipelineArgs& a) {
   t.add("mapping", sw.lap_ms());
   const PointCloud& map = mapped.map;
   const std::vector<StampedPose> truth_poses = io::read_stamped_poses(rd.truth_dir() / "cabin_poses.tum");
-  const TrajectoryError ate_raw = trajectory_error(mapped.raw_trajectory, truth_poses);
-  const TrajectoryError ate_mapped = trajectory_error(mapped.trajectory, truth_poses);
+  const eval::TrajectoryError ate_raw = eval::trajectory_error(mapped.raw_trajectory, truth_poses);
+  const eval::TrajectoryError ate_mapped = eval::trajectory_error(mapped.trajectory, truth_poses);
   spdlog::info("pipeline       ATE raw state estimate {:.2f} cm -> mapped {:.2f} cm ({} nodes, {} map points)",
                100 * ate_raw.ate_rmse, 100 * ate_mapped.ate_rmse, mapped.stats.nodes, map.size());
 
@@ -118,7 +119,7 @@ int run_pipeline(const PipelineArgs& a) {
     if (!r.success) registration["reason"] = r.reason;
     if (r.success) {
       const eval::MapRelativeError rel =
-          eval::error_against_map(r.T_target_source, drone, reg_truth, ObjectSurfaceTruth(reg_truth.snapshot), map);
+          eval::error_against_map(r.T_target_source, drone, reg_truth, eval::ObjectSurfaceTruth(reg_truth.snapshot), map);
       registration["error_vs_map"] = {{"rotation_deg", rel.error.rotation_deg},
                                       {"translation_m", rel.error.translation_m},
                                       {"map_offset_at_stones_m", rel.map_offset_m}};

@@ -12,6 +12,7 @@
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/run_dir.hpp"
 #include "cairn/core/kdtree.hpp"
+#include "cairn/eval/map_scoring.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/mapping/self_filter.hpp"
 #include "cairn/sim/simulation.hpp"
@@ -22,6 +23,8 @@ namespace cairn {
 namespace {
 
 namespace fs = std::filesystem;
+using eval::trajectory_error;
+using eval::TrajectoryError;
 constexpr double kDuration = 20.0;
 
 const fs::path& simulated_run(const std::string& scenario, std::uint64_t seed, double duration = kDuration) {

@@ -14,6 +14,7 @@
 #include "cairn/core/error.hpp"
 #include "cairn/core/io/io.hpp"
 #include "cairn/core/io/run_dir.hpp"
+#include "cairn/eval/map_scoring.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/registration/drone_registration.hpp"
 #include "cairn/registration/global_registration.hpp"
@@ -329,7 +330,7 @@ TEST(GlobalRegistration, LevellingTurnsTheGroundOntoTheMapsGround) {
 // The whole chain on more sites (seed 1 above): each seed is its own simulated exp1 layout (stones, terrain,
 // drone survey), 8 s of scanning, scale recovery, and a drone cloud in an arbitrary 3-D frame.
 // Success must be right against the truth, and against the map as built (the map's own offset at
-// the stones removed, mapping/map_offset_at_objects) within the 0.3 deg / 2 cm.
+// the stones removed, eval/map_offset_at_objects) within the 0.3 deg / 2 cm.
 class GlobalRegistrationSeeds : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(GlobalRegistrationSeeds, ArbitraryFrameRegistersWithEveryStoneOneObject) {
@@ -373,7 +374,7 @@ TEST_P(GlobalRegistrationSeeds, ArbitraryFrameRegistersWithEveryStoneOneObject) 
   EXPECT_LT(e.rotation_deg, kMaxRotationErrorDeg);
   EXPECT_LT(e.translation_m, kMaxTranslationError);
   const PointCloud snapshot = io::load_cloud(run / "truth" / "map_snapshot.ply");
-  const Similarity T_map_true = Similarity::from_isometry(map_offset_at_objects(map, snapshot).inverse());
+  const Similarity T_map_true = Similarity::from_isometry(eval::map_offset_at_objects(map, snapshot).inverse());
   const Vec3d centre_in_map = T_map_true * kSiteCentre;
   const RegistrationError e_map = errors(r.T_target_source, T_map_true * truth, centre_in_map);
   EXPECT_LT(e_map.rotation_deg, 0.3);

@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "cairn/eval/map_scoring.hpp"
 #include "cairn/eval/object_tracking.hpp"
 #include "cairn/core/log.hpp"
 #include "cairn/grasp/config.hpp"

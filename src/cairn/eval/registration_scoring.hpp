@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cairn/core/io/run_dir.hpp"
+#include "cairn/eval/map_scoring.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/registration/global_registration.hpp"
 #include "cairn/registration/scale_recovery.hpp"

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "cairn/core/kdtree.hpp"
+#include "cairn/eval/map_scoring.hpp"
 #include "cairn/mapping/config.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/sim/simulation.hpp"
