@@ -165,7 +165,10 @@ void validate(const ProtocolConfig& c) {
   if (!(c.every > 0.0) || c.every > c.duration) throw InputError("protocol: --every must be in (0, --duration]");
 }
 
-bool ProtocolTrial::false_positive() const { return score.accepted && !right_answer(score.error); }
+bool ProtocolTrial::false_positive() const {
+  return score.accepted &&
+         (score.error.rotation_deg > kWrongRotationDeg || score.error.translation_m > kWrongTranslation);
+}
 
 nlohmann::json ProtocolTrial::to_json() const {
   nlohmann::json j = score.to_json();
