@@ -23,7 +23,6 @@ int run_protocol(const ProtocolArgs& a) {
   AppConfig base;
   base.simulation = sim::scenario_config(a.protocol.scenario, sim::default_real_mesh_dir());
   const AppConfig cfg = a.common.load(base);
-  eval::validate(a.protocol);
   const std::filesystem::path out(a.out);
   const eval::ProtocolResult r = eval::run_protocol(a.protocol, cfg, out);
   const std::filesystem::path grid = out / "trials.png", acceptance = out / "acceptance.png";
