@@ -8,6 +8,7 @@
 #include "cairn/core/error.hpp"
 #include "cairn/core/image.hpp"
 #include "cairn/core/log.hpp"
+#include "cairn/core/stats.hpp"
 #include "cairn/mapping/mapper.hpp"
 #include "cairn/sim/simulation.hpp"
 
@@ -20,21 +21,18 @@ constexpr int kPlotSize = 480;
 constexpr double kPlotMaxRmse = 0.08;  // [m]
 constexpr double kLateFrom = 15.0;     // [s] the summary's second window: trials from 15 s of scanning on
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
+/// The median of a sample, 0 when it is empty (the summary's convention).
+double median_or_zero(const std::vector<double>& v) { return v.empty() ? 0.0 : median(v); }
 
 /// {"median", "max"} of a sample (0 for both when it is empty).
 nlohmann::json median_max(const std::vector<double>& v) {
-  return {{"median", median(v)}, {"max", v.empty() ? 0.0 : *std::max_element(v.begin(), v.end())}};
+  return {{"median", median_or_zero(v)}, {"max", v.empty() ? 0.0 : *std::max_element(v.begin(), v.end())}};
 }
 
 /// {"min", "median", "max"} of a sample (null when it is empty).
 nlohmann::json range(const std::vector<double>& v) {
   if (v.empty()) return nullptr;
-  return {{"min", *std::min_element(v.begin(), v.end())}, {"median", median(v)}, {"max", *std::max_element(v.begin(), v.end())}};
+  return {{"min", *std::min_element(v.begin(), v.end())}, {"median", median_or_zero(v)}, {"max", *std::max_element(v.begin(), v.end())}};
 }
 
 bool right_answer(const RegistrationError& e) {
@@ -241,8 +239,8 @@ nlohmann::json summarise_trials(const std::vector<ProtocolTrial>& trials, double
           {"translation_error_m", median_max(trans)},
           {"rotation_error_vs_map_deg", median_max(rot_map)},
           {"translation_error_vs_map_m", median_max(trans_map)},
-          {"registration_ms_median", median(ms)},
-          {"reoptimize_ms_median", median(reopt_ms)},
+          {"registration_ms_median", median_or_zero(ms)},
+          {"reoptimize_ms_median", median_or_zero(reopt_ms)},
           {"map_offset_m", median_max(offsets)}};
 }
 
@@ -294,7 +292,7 @@ nlohmann::json protocol_summary(const ProtocolResult& r, const std::filesystem::
           {"all", summarise_trials(r.trials, 0.0)},
           {"from_15s", summarise_trials(r.trials, kLateFrom)},
           {"time_to_first_success_s", first},
-          {"time_to_first_success_median_s", median(firsts)},
+          {"time_to_first_success_median_s", median_or_zero(firsts)},
           {"seeds_without_success", c.seeds - int(firsts.size())},
           {"acceptance_study", acceptance},
           {"picture", grid_png.string()}};

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <string>
 
+#include "cairn/core/stats.hpp"
+
 namespace cairn::grasp {
 namespace {
 
@@ -13,12 +15,6 @@ constexpr std::array<std::array<std::uint32_t, 4>, 6> kQuads{{{0, 4, 6, 2}, {1, 
                                                               {2, 6, 7, 3}, {0, 2, 3, 1}, {4, 5, 7, 6}}};
 constexpr int kPanel = 220, kHeight = 320, kGap = 10;  // [px]
 constexpr double kMaxRatio = 3.0;                       // costs drawn up to 3x their median
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 1.0;
-  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
 
 void dot(Image& img, int cx, int cy, Rgb c) {
   for (int dy = -2; dy <= 2; ++dy)
@@ -75,7 +71,7 @@ io::Mesh gripper_mesh(const std::vector<ConvexPart>& parts, const Eigen::Isometr
 NormalizedCosts normalized_costs(const GraspPlanning& p) {
   NormalizedCosts n{.all = split(p.force_closure_costs), .selected = split(p.selected_costs)};
   for (std::size_t k = 0; k < 3; ++k) {
-    const double m = std::max(median(n.all[k]), 1e-9);
+    const double m = n.all[k].empty() ? 1.0 : std::max(median(n.all[k]), 1e-9);
     for (double& v : n.all[k]) v /= m;
     for (double& v : n.selected[k]) v /= m;
   }

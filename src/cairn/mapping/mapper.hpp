@@ -21,7 +21,6 @@
 #include <tbb/task_group.h>
 
 #include "cairn/core/io/run_dir.hpp"
-#include "cairn/core/kdtree.hpp"
 #include "cairn/core/log.hpp"
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/core/robot_model.hpp"
