@@ -101,7 +101,8 @@ TEST(TargetCheck, TheEstimatedCentreIsCarriedByTheStoredMotionAndALostObjectIsNe
 // Sec. 6.1's places on exp1's layout (swing axis at x = -6 facing +x, R_map = 10 m): the row
 // 8 m out holds the places whose centre lies in the map (y = 0, +-1.7, +-3.4, +-5.1 — not the
 // +-6.8 and +-8.5 the row offered before, 10.5 and 11.7 m from the axis, which the rescans never
-// saw: stones placed there were lost), then the rows 1.7 m nearer, down to row_min_distance.
+// saw: stones placed there were lost), then the rows 1.7 m nearer, down to row_min_distance,
+// then the rows farther out.
 TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
   ExperimentConfig c;
   const Eigen::Vector2d axis(-6.0, 0.0);
@@ -113,16 +114,23 @@ TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
     EXPECT_NEAR(places[i].x(), 2.0, 1e-9) << i;
     EXPECT_NEAR(places[i].y(), first_row[i], 1e-9) << i;
   }
-  std::set<long> rows;
-  for (std::size_t i = 0; i < places.size(); ++i) {
-    EXPECT_LE((places[i] - axis).norm(), R + 1e-9) << i;
-    rows.insert(std::lround(10.0 * (places[i].x() - axis.x())));
-    if (i > 0) {
-      EXPECT_LE(places[i].x(), places[i - 1].x() + 1e-9) << "rows nearer the machine come after";
+  // The rows in the order offered, each place once.
+  const auto rows_of = [&](const std::vector<Eigen::Vector2d>& ps) {
+    std::vector<long> rows;
+    for (std::size_t i = 0; i < ps.size(); ++i) {
+      EXPECT_LE((ps[i] - axis).norm(), R + 1e-9) << i;
+      const long row = std::lround(10.0 * (ps[i].x() - axis.x()));
+      if (rows.empty() || rows.back() != row) rows.push_back(row);
+      for (std::size_t j = 0; j < i; ++j) EXPECT_GE((ps[i] - ps[j]).norm(), c.row_spacing - 1e-9);
     }
-    for (std::size_t j = 0; j < i; ++j) EXPECT_GE((places[i] - places[j]).norm(), c.row_spacing - 1e-9);
-  }
-  EXPECT_EQ(rows, (std::set<long>{80, 63, 46}));  // 2.9 m < row_min_distance: no fourth row
+    return rows;
+  };
+  // 2.9 m < row_min_distance: no fourth row nearer; 9.7 m farther out (its three places in the map).
+  EXPECT_EQ(rows_of(places), (std::vector<long>{80, 63, 46, 97}));
+  EXPECT_EQ(std::count_if(places.begin(), places.end(), [&](const auto& p) { return p.x() > 3.0; }), 3);
+  // exp2's even rounds (4.5 m, the nearest row already): spares outwards, where the odd rounds'
+  // stones wait (before: the 4.5 m row alone, which the odd rounds' 4.6 m spares overlap).
+  EXPECT_EQ(rows_of(target_places(axis, 0.0, c.row_distance_even, 7, c)), (std::vector<long>{45, 62, 79, 96}));
   // A stone's footprint must fit too: 0.6 m half-size and 0.2 m clearance fit at y = 3.4 (8.7 m
   // from the axis), not at y = 5.1 (9.5 m).
   EXPECT_TRUE(place_in_map({2.0, 3.4}, 0.6, axis, c));
@@ -156,6 +164,32 @@ TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
     b.tracking.mapping.local_map.R_map = bad;
     EXPECT_THROW((void)target_places(axis, 0.0, 8.0, 7, b), ConfigError) << bad;
   }
+}
+
+// A place is free for a stone when the other objects' points lie beyond its reach about its
+// centroid plus the clearance: a long stone (3 m x 0.4 m) reaches 1.5 m however it is turned
+// about the vertical, where half its bounding box's diagonal (1.53 m) grows with a diagonal
+// turn; the gap is to the nearest point, not to a bounding box that an L-shaped neighbour's
+// empty corner inflates.
+TEST(Targets, AStoneReachesItsFarthestPointAndTheGapIsToTheNearestPoint) {
+  PointCloud bar;
+  bar.origin = {10.0, 20.0, 1.0};
+  for (int i = 0; i <= 30; ++i)
+    for (const float w : {-0.2f, 0.2f}) bar.points.emplace_back(float(-1.5 + 0.1 * i), w, 0.3f * float(i % 2));
+  const Eigen::Vector3d centre = bar.origin;
+  EXPECT_NEAR(xy_reach(bar, centre), std::hypot(1.5, 0.2), 1e-6);
+  EXPECT_NEAR(xy_reach(bar, centre + Eigen::Vector3d(0.5, 0.0, 0.0)), std::hypot(2.0, 0.2), 1e-6);
+  EXPECT_EQ(xy_reach(PointCloud{}, centre), 0.0);
+  PointCloud ell;  // an L: one arm along x, one along y, its bounding box's corner at (11, 11) empty
+  for (int i = 0; i <= 10; ++i) {
+    ell.points.emplace_back(float(0.1 * i), 0.0f, 0.0f);
+    ell.points.emplace_back(0.0f, float(0.1 * i), 0.0f);
+  }
+  ell.origin = {10.0, 10.0, 0.0};
+  EXPECT_NEAR(xy_gap(ell, {11.0, 11.0}), 1.0, 1e-6);
+  EXPECT_NEAR(xy_gap(ell, {10.5, 9.0}), 1.0, 1e-6);
+  EXPECT_NEAR(xy_gap(ell, {10.0, 10.0}), 0.0, 1e-9);
+  EXPECT_TRUE(std::isinf(xy_gap(PointCloud{}, {0.0, 0.0})));
 }
 
 std::filesystem::path fresh_db(const std::string& name) {

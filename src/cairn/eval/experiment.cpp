@@ -11,6 +11,7 @@
 #include <set>
 
 #include "cairn/core/error.hpp"
+#include "cairn/core/stats.hpp"
 #include "cairn/core/transform.hpp"
 #include "cairn/eval/tracker.hpp"
 #include "cairn/mapping/mapper.hpp"
@@ -49,9 +50,7 @@ Eigen::Vector3d fit_height_plane(const std::vector<Vec3d>& p) {
   }
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(A);
   if (qr.rank() == 3) return qr.solve(z);
-  std::vector<double> h(z.data(), z.data() + z.size());
-  std::nth_element(h.begin(), h.begin() + long(h.size() / 2), h.end());
-  return {h[h.size() / 2], 0.0, 0.0};
+  return {median(std::vector<double>(z.data(), z.data() + z.size())), 0.0, 0.0};
 }
 
 /// The cloud thinned to `voxel` (the report's scene): positions only.
@@ -60,13 +59,6 @@ PointCloud thin(const PointCloud& c, double voxel) {
   p.points = c.points;
   p.origin = c.origin;
   return p.empty() ? p : voxel_downsample(p, {.res_voxel = voxel, .n_min = 1});
-}
-
-/// Horizontal bounding box of a cloud (world coordinates).
-Eigen::AlignedBox2d xy_bounds(const PointCloud& c) {
-  Eigen::AlignedBox2d b;
-  for (std::size_t i = 0; i < c.size(); ++i) b.extend(c.world(i).head<2>());
-  return b;
 }
 
 void validate(const ExperimentConfig& c) {
@@ -308,20 +300,19 @@ std::vector<Vec2d> Experiment::row(int round) const {
 }
 
 /// The first unused place of the round's rows inside the map that no other object comes near
-/// (the database's view).
+/// (the database's view): the stone's reach about its centroid (which goes to the place) plus
+/// target_clearance clear of every other object's points.
 std::optional<Vec2d> Experiment::free_target(int round, const ObjectRecord& obj, std::vector<bool>& used) const {
   const std::vector<Vec2d> places = row(round);
-  const double half = 0.5 * xy_bounds(obj.cloud).diagonal().norm();
+  const double reach = xy_reach(obj.cloud, obj.centroid);
   const std::vector<ObjectRecord> others = tracker_.db().objects();
   const Vec2d axis = tracker_.machine().base().head<2>();
   for (std::size_t i = 0; i < places.size(); ++i) {
-    if (used[i] || !place_in_map(places[i], half, axis, c_)) continue;
+    if (used[i] || !place_in_map(places[i], reach, axis, c_)) continue;
     bool clear = true;
     for (const ObjectRecord& o : others) {
       if (o.id == obj.id || o.status == ObjectStatus::lost) continue;
-      const Eigen::AlignedBox2d b = xy_bounds(o.cloud);
-      const Vec2d q = places[i].cwiseMax(b.min()).cwiseMin(b.max());
-      clear = clear && (q - places[i]).norm() > half + c_.target_clearance;
+      clear = clear && xy_gap(o.cloud, places[i]) > reach + c_.target_clearance;
     }
     if (!clear) continue;
     used[i] = true;
@@ -620,9 +611,9 @@ void Experiment::move_stone(int round, Tracker::Tracked& tr, std::vector<bool>& 
   }
   const std::optional<Vec2d> target = free_target(round, *tracker_.db().object(tr.object), used);
   if (!target) {
+    const std::optional<ObjectRecord> o = tracker_.db().object(tr.object);
     char extent[96];
-    std::snprintf(extent, sizeof extent, " (the object is %.2f m across)",
-                  xy_bounds(tracker_.db().object(tr.object)->cloud).diagonal().norm());
+    std::snprintf(extent, sizeof extent, " (the object reaches %.2f m from its centroid)", xy_reach(o->cloud, o->centroid));
     out.notes.push_back(name + ": no free place in the rows" + extent);
     return;
   }
@@ -835,9 +826,12 @@ std::vector<Vec2d> target_places(const Vec2d& axis, double heading, double dista
   const double shift = count % 2 == 0 ? 0.5 * c.row_spacing : 0.0;  // an even row is centred too
   const Eigen::Rotation2Dd turn(heading);
   std::vector<Vec2d> places;
-  for (int row = 0;; ++row) {
-    const double d = distance - row * c.row_spacing;
-    if (row > 0 && d < c.row_min_distance - 1e-9) break;
+  // The round's row, the rows nearer the machine down to row_min_distance, then the rows farther
+  // out while they reach into the map.
+  std::vector<double> rows = {distance};
+  for (double d = distance - c.row_spacing; d >= c.row_min_distance - 1e-9; d -= c.row_spacing) rows.push_back(d);
+  for (double d = distance + c.row_spacing; d <= R + 1e-9; d += c.row_spacing) rows.push_back(d);
+  for (const double d : rows) {
     // From the middle outwards: 0, -1, +1, -2, +2, ... spacings (even rows: -1/2 + 1/2, then
     // -3/2, +3/2, ...), until both ends leave the map.
     for (int i = 0;; ++i) {
@@ -850,8 +844,20 @@ std::vector<Vec2d> target_places(const Vec2d& axis, double heading, double dista
   return places;
 }
 
-bool place_in_map(const Vec2d& place, double half, const Vec2d& axis, const ExperimentConfig& c) {
-  return (place - axis).norm() + half + c.target_clearance <= c.tracking.mapping.local_map.R_map;
+bool place_in_map(const Vec2d& place, double reach, const Vec2d& axis, const ExperimentConfig& c) {
+  return (place - axis).norm() + reach + c.target_clearance <= c.tracking.mapping.local_map.R_map;
+}
+
+double xy_reach(const PointCloud& cloud, const Vec3d& centre) {
+  double r2 = 0.0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) r2 = std::max(r2, (cloud.world(i) - centre).head<2>().squaredNorm());
+  return std::sqrt(r2);
+}
+
+double xy_gap(const PointCloud& cloud, const Vec2d& xy) {
+  double g2 = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < cloud.size(); ++i) g2 = std::min(g2, (cloud.world(i).head<2>() - xy).squaredNorm());
+  return std::sqrt(g2);
 }
 
 ExperimentResult run_experiment(const ExperimentConfig& config, const ExperimentProgress& progress) {

@@ -69,9 +69,11 @@ struct ExperimentConfig {
   // wall; odd rounds at row_distance from the swing axis (beyond exp2's stones; through the
   // middle of exp1's), even rounds at row_distance_even (where they were); a target another
   // object blocks moves on to the row's next spare place, then to the rows row_spacing nearer
-  // the machine (down to row_min_distance). Only places inside the robot-centric map (R_map,
-  // Table 3) with the stone's footprint and target_clearance: a stone set down beyond it is
-  // never seen again, so the rescan could not check it (target_places, free_target).
+  // the machine (down to row_min_distance), then to the rows farther out. Free means every other
+  // object's points lie farther than the stone's reach about its centroid plus target_clearance.
+  // Only places inside the robot-centric map (R_map, Table 3) with the stone's reach and
+  // target_clearance: a stone set down beyond it is never seen again, so the rescan could not
+  // check it (target_places, free_target).
   double row_distance = 8.0;       // [m]
   double row_distance_even = 4.5;  // [m]
   double row_spacing = 1.7;        // [m] between targets (the stones are up to ~1.3 m wide)
@@ -274,15 +276,26 @@ struct ExperimentResult {
 
 /// Sec. 6.1's equally spaced places, in the order they are offered: the row at `distance` from
 /// the swing axis `axis` across `heading` (the row of `count` targets, centred), from its middle
-/// outwards, then the rows row_spacing nearer the machine down to row_min_distance. Only places
-/// within R_map of the axis (the robot-centric map, Table 3; the spares beyond it dropped).
+/// outwards, then the rows row_spacing nearer the machine down to row_min_distance, then the rows
+/// row_spacing farther out. Only places within R_map of the axis (the robot-centric map, Table 3;
+/// the spares beyond it dropped).
 [[nodiscard]] std::vector<Eigen::Vector2d> target_places(const Eigen::Vector2d& axis, double heading, double distance,
                                                          int count, const ExperimentConfig& c);
 
-/// True when a stone `half` wide (half its xy diagonal) set down at `place` lies inside the
-/// robot-centric map with target_clearance to spare: the rescan can see and check it.
-[[nodiscard]] bool place_in_map(const Eigen::Vector2d& place, double half, const Eigen::Vector2d& axis,
+/// True when a stone reaching `reach` from its centroid (xy_reach), its centroid set down at
+/// `place`, lies inside the robot-centric map with target_clearance to spare: the rescan can see
+/// and check it.
+[[nodiscard]] bool place_in_map(const Eigen::Vector2d& place, double reach, const Eigen::Vector2d& axis,
                                 const ExperimentConfig& c);
+
+/// A stone's horizontal reach: the largest xy distance of its points (world frame) from `centre`.
+/// Its footprint stays within it when the stone turns about the vertical through `centre`.
+[[nodiscard]] double xy_reach(const PointCloud& cloud, const Eigen::Vector3d& centre);
+
+/// The horizontal distance from `xy` to the cloud's nearest point (world frame); infinity when
+/// the cloud is empty. A place is free for a stone when every other object's gap exceeds the
+/// stone's reach plus target_clearance.
+[[nodiscard]] double xy_gap(const PointCloud& cloud, const Eigen::Vector2d& xy);
 
 using ExperimentProgress = std::function<void(const std::string&, int, int)>;
 
