@@ -125,13 +125,21 @@ TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
     }
     return rows;
   };
-  // 2.9 m < row_min_distance: no fourth row nearer; 9.7 m farther out (its three places in the map).
-  EXPECT_EQ(rows_of(places), (std::vector<long>{80, 63, 46, 97}));
-  EXPECT_EQ(std::count_if(places.begin(), places.end(), [&](const auto& p) { return p.x() > 3.0; }), 3);
+  // 2.9 m < row_min_distance: no fourth row nearer; none farther: at 9.7 m a stone reaching half
+  // a spacing (0.85 m) would not fit in the map even at the row's middle (9.7 + 0.85 + 0.2 > 10).
+  EXPECT_EQ(rows_of(places), (std::vector<long>{80, 63, 46}));
   // exp2's even rounds (4.5 m, the nearest row already): spares outwards, where the odd rounds'
-  // stones wait (before: the 4.5 m row alone, which the odd rounds' 4.6 m spares overlap).
-  EXPECT_EQ(rows_of(target_places(axis, 0.0, c.row_distance_even, 7, c)), (std::vector<long>{45, 62, 79, 96}));
-  // A stone's footprint must fit too: 0.6 m half-size and 0.2 m clearance fit at y = 3.4 (8.7 m
+  // stones wait (before: the 4.5 m row alone, which the odd rounds' 4.6 m spares overlap); 9.6 m
+  // is too far out for the same reason.
+  const auto even_round = target_places(axis, 0.0, c.row_distance_even, 7, c);
+  EXPECT_EQ(rows_of(even_round), (std::vector<long>{45, 62, 79}));
+  // The farthest row holds places that a stone of 1.2 m reach fits (y = 0 and +-1.7 at 7.9 m).
+  for (const double y : {0.0, -1.7, 1.7}) {
+    const Eigen::Vector2d p = axis + Eigen::Vector2d(7.9, y);
+    EXPECT_EQ(std::count_if(even_round.begin(), even_round.end(), [&](const auto& q) { return (q - p).norm() < 1e-9; }), 1) << y;
+    EXPECT_TRUE(place_in_map(p, 1.2, axis, c)) << y;
+  }
+  // A stone's footprint must fit too: 0.6 m reach and 0.2 m clearance fit at y = 3.4 (8.7 m
   // from the axis), not at y = 5.1 (9.5 m).
   EXPECT_TRUE(place_in_map({2.0, 3.4}, 0.6, axis, c));
   EXPECT_FALSE(place_in_map({2.0, 5.1}, 0.6, axis, c));
@@ -167,10 +175,10 @@ TEST(Targets, EveryPlaceLiesInTheMapRowByRowFromTheMiddleOutwards) {
 }
 
 // A place is free for a stone when the other objects' points lie beyond its reach about its
-// centroid plus the clearance: a long stone (3 m x 0.4 m) reaches 1.5 m however it is turned
-// about the vertical, where half its bounding box's diagonal (1.53 m) grows with a diagonal
-// turn; the gap is to the nearest point, not to a bounding box that an L-shaped neighbour's
-// empty corner inflates.
+// centroid plus the clearance: a long stone (3 m x 0.4 m) reaches 1.51 m however it is turned
+// about the vertical, where half its bounding box's diagonal grows from 1.51 m to 1.70 m when it
+// is turned 45 deg; the gap is to the nearest point, not to a bounding box that an L-shaped
+// neighbour's empty corner inflates.
 TEST(Targets, AStoneReachesItsFarthestPointAndTheGapIsToTheNearestPoint) {
   PointCloud bar;
   bar.origin = {10.0, 20.0, 1.0};
@@ -190,6 +198,18 @@ TEST(Targets, AStoneReachesItsFarthestPointAndTheGapIsToTheNearestPoint) {
   EXPECT_NEAR(xy_gap(ell, {10.5, 9.0}), 1.0, 1e-6);
   EXPECT_NEAR(xy_gap(ell, {10.0, 10.0}), 0.0, 1e-9);
   EXPECT_TRUE(std::isinf(xy_gap(PointCloud{}, {0.0, 0.0})));
+  // A place 1.0 m from the L's nearest point: free for a stone of 0.7 m reach (+ 0.2 m clearance),
+  // not for one of 0.85 m (the gap must exceed reach + clearance); the stone itself and lost
+  // objects never block.
+  const ExperimentConfig c;
+  ObjectRecord neighbour{.id = 2, .cloud = ell};
+  const Eigen::Vector2d place(10.5, 9.0);
+  EXPECT_TRUE(place_is_free(place, 0.7, 1, {neighbour}, c));
+  EXPECT_FALSE(place_is_free(place, 0.85, 1, {neighbour}, c));
+  EXPECT_TRUE(place_is_free(place, 0.85, 2, {neighbour}, c));
+  neighbour.status = ObjectStatus::lost;
+  EXPECT_TRUE(place_is_free(place, 0.85, 1, {neighbour}, c));
+  EXPECT_TRUE(place_is_free(place, 5.0, 1, {}, c));
 }
 
 std::filesystem::path fresh_db(const std::string& name) {

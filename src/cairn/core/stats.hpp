@@ -2,6 +2,7 @@
 // Small sample statistics shared by the stages and the evaluation (one definition of each).
 
 #include <algorithm>
+#include <cstddef>
 #include <limits>
 #include <vector>
 

@@ -300,21 +300,18 @@ std::vector<Vec2d> Experiment::row(int round) const {
 }
 
 /// The first unused place of the round's rows inside the map that no other object comes near
-/// (the database's view): the stone's reach about its centroid (which goes to the place) plus
-/// target_clearance clear of every other object's points.
+/// (the database's view): the stone's reach about its centroid plus target_clearance clear of
+/// every other object's points. The attempt puts the planner's (or the weighed) centre of mass on
+/// the place, a few centimetres from the points' centroid (up to ~0.3 m on a second attempt,
+/// docs/experiments.md): the clearance covers the usual case only.
 std::optional<Vec2d> Experiment::free_target(int round, const ObjectRecord& obj, std::vector<bool>& used) const {
   const std::vector<Vec2d> places = row(round);
   const double reach = xy_reach(obj.cloud, obj.centroid);
   const std::vector<ObjectRecord> others = tracker_.db().objects();
   const Vec2d axis = tracker_.machine().base().head<2>();
   for (std::size_t i = 0; i < places.size(); ++i) {
-    if (used[i] || !place_in_map(places[i], reach, axis, c_)) continue;
-    bool clear = true;
-    for (const ObjectRecord& o : others) {
-      if (o.id == obj.id || o.status == ObjectStatus::lost) continue;
-      clear = clear && xy_gap(o.cloud, places[i]) > reach + c_.target_clearance;
-    }
-    if (!clear) continue;
+    if (used[i] || !place_in_map(places[i], reach, axis, c_) || !place_is_free(places[i], reach, obj.id, others, c_))
+      continue;
     used[i] = true;
     return places[i];
   }
@@ -827,10 +824,12 @@ std::vector<Vec2d> target_places(const Vec2d& axis, double heading, double dista
   const Eigen::Rotation2Dd turn(heading);
   std::vector<Vec2d> places;
   // The round's row, the rows nearer the machine down to row_min_distance, then the rows farther
-  // out while they reach into the map.
   std::vector<double> rows = {distance};
   for (double d = distance - c.row_spacing; d >= c.row_min_distance - 1e-9; d -= c.row_spacing) rows.push_back(d);
-  for (double d = distance + c.row_spacing; d <= R + 1e-9; d += c.row_spacing) rows.push_back(d);
+  // out while a stone half a spacing wide (the widest a row is laid out for) fits at the row's
+  // middle with target_clearance to spare.
+  for (int k = 1; distance + k * c.row_spacing + 0.5 * c.row_spacing + c.target_clearance <= R + 1e-9; ++k)
+    rows.push_back(distance + k * c.row_spacing);
   for (const double d : rows) {
     // From the middle outwards: 0, -1, +1, -2, +2, ... spacings (even rows: -1/2 + 1/2, then
     // -3/2, +3/2, ...), until both ends leave the map.
@@ -854,6 +853,15 @@ double xy_reach(const PointCloud& cloud, const Vec3d& centre) {
   return std::sqrt(r2);
 }
 
+bool place_is_free(const Vec2d& place, double reach, std::int64_t self, const std::vector<ObjectRecord>& objects,
+                   const ExperimentConfig& c) {
+  return std::all_of(objects.begin(), objects.end(), [&](const ObjectRecord& o) {
+    return o.id == self || o.status == ObjectStatus::lost || xy_gap(o.cloud, place) > reach + c.target_clearance;
+  });
+}
+
+// A brute-force pass (not KdTree::nearest_within): the distance is horizontal, and a stone's
+// cloud is a few thousand points.
 double xy_gap(const PointCloud& cloud, const Vec2d& xy) {
   double g2 = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < cloud.size(); ++i) g2 = std::min(g2, (cloud.world(i).head<2>() - xy).squaredNorm());

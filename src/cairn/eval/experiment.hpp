@@ -69,7 +69,8 @@ struct ExperimentConfig {
   // wall; odd rounds at row_distance from the swing axis (beyond exp2's stones; through the
   // middle of exp1's), even rounds at row_distance_even (where they were); a target another
   // object blocks moves on to the row's next spare place, then to the rows row_spacing nearer
-  // the machine (down to row_min_distance), then to the rows farther out. Free means every other
+  // the machine (down to row_min_distance), then to the rows farther out (as far as a stone half
+  // a spacing wide fits in the map: exp2's even rounds, 6.2 and 7.9 m). Free means every other
   // object's points lie farther than the stone's reach about its centroid plus target_clearance.
   // Only places inside the robot-centric map (R_map, Table 3) with the stone's reach and
   // target_clearance: a stone set down beyond it is never seen again, so the rescan could not
@@ -277,8 +278,9 @@ struct ExperimentResult {
 /// Sec. 6.1's equally spaced places, in the order they are offered: the row at `distance` from
 /// the swing axis `axis` across `heading` (the row of `count` targets, centred), from its middle
 /// outwards, then the rows row_spacing nearer the machine down to row_min_distance, then the rows
-/// row_spacing farther out. Only places within R_map of the axis (the robot-centric map, Table 3;
-/// the spares beyond it dropped).
+/// row_spacing farther out while a stone reaching half a spacing fits at their middle (within
+/// R_map with target_clearance). Only places within R_map of the axis (the robot-centric map,
+/// Table 3; the spares beyond it dropped).
 [[nodiscard]] std::vector<Eigen::Vector2d> target_places(const Eigen::Vector2d& axis, double heading, double distance,
                                                          int count, const ExperimentConfig& c);
 
@@ -296,6 +298,11 @@ struct ExperimentResult {
 /// the cloud is empty. A place is free for a stone when every other object's gap exceeds the
 /// stone's reach plus target_clearance.
 [[nodiscard]] double xy_gap(const PointCloud& cloud, const Eigen::Vector2d& xy);
+
+/// True when every object but `self` and the lost ones (their stored pose is not where they are)
+/// lies farther from `place` than `reach` + target_clearance (xy_gap).
+[[nodiscard]] bool place_is_free(const Eigen::Vector2d& place, double reach, std::int64_t self,
+                                 const std::vector<ObjectRecord>& objects, const ExperimentConfig& c);
 
 using ExperimentProgress = std::function<void(const std::string&, int, int)>;
 

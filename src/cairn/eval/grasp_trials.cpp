@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "cairn/core/error.hpp"
+#include "cairn/core/stats.hpp"
 #include "cairn/core/transform.hpp"
 #include "cairn/eval/scanned_site.hpp"
 #include "cairn/objects/pipeline.hpp"
@@ -331,7 +332,7 @@ nlohmann::json to_json(const GraspTrialsResult& r) {
   const auto q = [&](double f) { return ms.empty() ? 0.0 : ms[std::min(ms.size() - 1, std::size_t(f * double(ms.size())))]; };
   return {{"planned", rate_json(r.planned)}, {"planned_flat", rate_json(r.planned_flat)},
           {"planned_roundish", rate_json(r.planned_roundish)}, {"baseline", rate_json(r.baseline)},
-          {"planning_ms", {{"median", q(0.5)}, {"p90", q(0.9)}, {"max", ms.empty() ? 0.0 : ms.back()}}},
+          {"planning_ms", {{"median", ms.empty() ? 0.0 : median(ms)}, {"p90", q(0.9)}, {"max", ms.empty() ? 0.0 : ms.back()}}},
           {"skipped", r.skipped}, {"drone_registration", r.drone_registration}, {"trials", trials}};
 }
 
