@@ -824,11 +824,11 @@ std::vector<Vec2d> target_places(const Vec2d& axis, double heading, double dista
   const Eigen::Rotation2Dd turn(heading);
   std::vector<Vec2d> places;
   // The round's row, the rows nearer the machine down to row_min_distance, then the rows farther
-  std::vector<double> rows = {distance};
-  for (double d = distance - c.row_spacing; d >= c.row_min_distance - 1e-9; d -= c.row_spacing) rows.push_back(d);
   // out while a stone half a spacing wide (the widest a row is laid out for) fits at the row's
   // middle with target_clearance to spare.
-  for (int k = 1; distance + k * c.row_spacing + 0.5 * c.row_spacing + c.target_clearance <= R + 1e-9; ++k)
+  std::vector<double> rows = {distance};
+  for (int k = 1; distance - k * c.row_spacing >= c.row_min_distance - 1e-9; ++k) rows.push_back(distance - k * c.row_spacing);
+  for (int k = 1; distance + (k + 0.5) * c.row_spacing + c.target_clearance <= R + 1e-9; ++k)
     rows.push_back(distance + k * c.row_spacing);
   for (const double d : rows) {
     // From the middle outwards: 0, -1, +1, -2, +2, ... spacings (even rows: -1/2 + 1/2, then

@@ -32,7 +32,7 @@ nlohmann::json median_max(const std::vector<double>& v) {
 /// {"min", "median", "max"} of a sample (null when it is empty).
 nlohmann::json range(const std::vector<double>& v) {
   if (v.empty()) return nullptr;
-  return {{"min", *std::min_element(v.begin(), v.end())}, {"median", median_or_zero(v)}, {"max", *std::max_element(v.begin(), v.end())}};
+  return {{"min", *std::min_element(v.begin(), v.end())}, {"median", median(v)}, {"max", *std::max_element(v.begin(), v.end())}};
 }
 
 bool right_answer(const RegistrationError& e) {
