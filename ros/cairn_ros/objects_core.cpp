@@ -100,7 +100,10 @@ std::string ObjectsCore::realign(double time) {
   nlohmann::json out = nlohmann::json::array();
   for (const ObjectRecord& o : impl_->db.objects()) {
     if (o.status != ObjectStatus::placed) continue;
-    const RealignResult r = relocate_object(o, *map, impl_->config.objects, impl_->config.segmentation);
+    // The others as stored now (those realigned before this one at their corrected poses): the
+    // search takes no segment that is another object's.
+    const RealignResult r =
+        relocate_object(o, *map, impl_->db.objects(), impl_->config.objects, impl_->config.segmentation);
     (void)impl_->db.commit(realign_operation(o, r, time));
     out.push_back({{"object", o.id}, {"found", r.found}, {"large", r.large}, {"translation_m", r.translation},
                    {"rotation_deg", r.rotation_deg}, {"fitness", r.fitness}, {"reason", r.reason}});

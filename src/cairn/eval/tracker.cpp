@@ -309,7 +309,8 @@ RealignResult Tracker::rescan_and_realign(MoveRecord& m, const Tracked& tr, doub
   const PointCloud rescanned = machine_.mapper().map();
   const auto after = truth();
   const Isometry3d E_after = after->offset->map_offset(rescanned);
-  const RealignResult r = relocate_object(*db_->object(tr.object), rescanned, cfg_.objects, cfg_.segmentation);
+  const RealignResult r =
+      relocate_object(*db_->object(tr.object), rescanned, db_->objects(), cfg_.objects, cfg_.segmentation);
   (void)db_->commit(realign_operation(*db_->object(tr.object), r, machine_.now()));
   m.found = r.found;
   m.fitness = r.fitness;

@@ -119,6 +119,12 @@ ModelFit fit_segment_to_model(const Entity& seg, const Entity& model, const Vec3
 
 }  // namespace
 
+double overlap_share(const PointCloud& segment, const PointCloud& cloud, double distance) {
+  if (segment.empty() || cloud.empty()) return 0.0;
+  const KdTree tree(cloud.points);
+  return double(count_near(relative_to(segment, cloud.origin), tree, distance)) / double(segment.size());
+}
+
 ModelFit fit_model_to_segment(const PointCloud& segment, const PointCloud& model, const AssociationConfig& config,
                               bool all_faces) {
   if (segment.empty() || model.empty()) throw InputError("fit_model_to_segment: empty cloud");

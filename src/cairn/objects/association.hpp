@@ -45,6 +45,10 @@ struct ModelFit {
   /// The fit is unambiguous: no clearly different pose comes within `margin` of its fitness.
   [[nodiscard]] bool unambiguous(double margin) const { return runner_up < fitness - margin; }
 };
+/// Share of `segment`'s points within `distance` of a point of `cloud` (0 for an empty cloud): the
+/// association's overlap (a segment sharing association.min_overlap of its points is that object).
+[[nodiscard]] double overlap_share(const PointCloud& segment, const PointCloud& cloud, double distance);
+
 [[nodiscard]] ModelFit fit_model_to_segment(const PointCloud& segment, const PointCloud& model,
                                             const AssociationConfig& config, bool all_faces);
 

@@ -22,6 +22,7 @@ void ObjectsConfig::validate() const {
   require(r.max_rmse > 0, "realign.max_rmse", "must be > 0");
   require(r.search_radius >= 0, "realign.search_radius", "must be >= 0");
   require(r.search_min_fitness > 0 && r.search_min_fitness <= 1, "realign.search_min_fitness", "must be in (0, 1]");
+  require(r.search_max_rmse > 0, "realign.search_max_rmse", "must be > 0");
   require(r.max_direct_translation > 0 && r.max_direct_rotation_deg > 0, "realign.max_direct_*", "must be > 0");
   const auto& a = association;
   require(a.overlap_distance > 0, "association.overlap_distance", "must be > 0");

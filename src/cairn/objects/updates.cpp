@@ -35,6 +35,20 @@ std::vector<Vec3f> crop_around(const PointCloud& map, const Vec3d& center, doubl
   return out;
 }
 
+/// The points of the other objects that may be near `center` (within `reach` horizontally, plus
+/// their own size) and can be seen: on the ground or placed (a lost object's cloud is where it
+/// was, a grasped one is in the gripper).
+PointCloud claimed_points(const std::vector<ObjectRecord>& others, std::int64_t self, const Vec3d& center, double reach) {
+  PointCloud out;
+  out.origin = center;
+  for (const ObjectRecord& o : others) {
+    if (o.id == self || (o.status != ObjectStatus::on_ground && o.status != ObjectStatus::placed)) continue;
+    if ((o.centroid - center).head<2>().norm() > reach + object_radius(o)) continue;
+    for (std::size_t i = 0; i < o.cloud.size(); ++i) out.points.push_back((o.cloud.world(i) - center).cast<float>());
+  }
+  return out;
+}
+
 template <class... Args>
 std::string format(const char* fmt, Args... args) {
   char buf[256];
@@ -144,8 +158,8 @@ RealignResult realign_object(const ObjectRecord& object, const PointCloud& map, 
   return r;
 }
 
-RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map, const ObjectsConfig& config,
-                              const SegmentationConfig& segmentation) {
+RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map, const std::vector<ObjectRecord>& others,
+                              const ObjectsConfig& config, const SegmentationConfig& segmentation) {
   RealignResult r = realign_object(object, map, config.realign);
   if (r.found) return r;
   const double reach = object_radius(object) + config.realign.search_radius;
@@ -155,18 +169,25 @@ RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map,
   if (near.size() < 100) return r;
   const PointCloud crop = select(map, near);
   const SegmentationResult seg = segment(crop, segmentation);
+  const PointCloud claimed = claimed_points(others, object.id, object.centroid, reach);
   ModelFit best;
+  int taken = 0;
   for (const Segment& s : seg.segments) {
     if (s.planar || (crop.origin + s.centroid.cast<double>() - object.centroid).head<2>().norm() > config.realign.search_radius)
       continue;
-    const ModelFit f = fit_model_to_segment(select(crop, s.indices), object.cloud, config.association, true);
+    const PointCloud points = select(crop, s.indices);
+    if (overlap_share(points, claimed, config.association.overlap_distance) >= config.association.min_overlap) {
+      ++taken;  // another object's segment (as the association's overlap would match it)
+      continue;
+    }
+    const ModelFit f = fit_model_to_segment(points, object.cloud, config.association, true);
     if (f.fitness > best.fitness) best = f;
   }
-  if (best.fitness < config.realign.search_min_fitness || best.rmse > config.association.max_rmse) {
+  if (best.fitness < config.realign.search_min_fitness || best.rmse > config.realign.search_max_rmse) {
     r.reason += format("; no segment within %.1f m fits its model (best %.0f %% of its points, min %.0f %%; rmse %.3f m, "
-                       "max %.3f m)",
+                       "max %.3f m; %d other objects' segments not tried)",
                        config.realign.search_radius, 100 * best.fitness, 100 * config.realign.search_min_fitness,
-                       best.rmse, config.association.max_rmse);
+                       best.rmse, config.realign.search_max_rmse, taken);
     return r;
   }
   if (!best.unambiguous(config.association.ambiguity_margin)) {

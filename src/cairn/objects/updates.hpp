@@ -7,6 +7,7 @@
 //             reported (fell or rolled), a poor fit marks the object lost with the reason.
 #include <Eigen/Geometry>
 #include <string>
+#include <vector>
 
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/objects/config.hpp"
@@ -48,10 +49,14 @@ struct RealignResult {
 
 /// realign_object, and when the object is not found near its prediction a search for a stone that
 /// fell or rolled: the map within search_radius of the prediction segmented, every object segment
-/// there fitted to the model from each face turned down (fit_model_to_segment), the best one
-/// (search_min_fitness) refined by realign_object from where it was found; reported as large.
+/// there that is not one of `others` (association.min_overlap of its points near the cloud of an
+/// object on the ground or placed; the object itself and lost or grasped ones do not count) fitted
+/// to the model from each face turned down (fit_model_to_segment), the best one
+/// (search_min_fitness, search_max_rmse) refined by realign_object from where it was found;
+/// reported as large.
 [[nodiscard]] RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map,
-                                            const ObjectsConfig& config, const SegmentationConfig& segmentation);
+                                            const std::vector<ObjectRecord>& others, const ObjectsConfig& config,
+                                            const SegmentationConfig& segmentation);
 
 /// The stored outcome: found → cloud corrected, status placed (reason set when large);
 /// not found → status lost with the reason, cloud unchanged.
