@@ -98,13 +98,14 @@ std::string ObjectsCore::realign(double time) {
   const std::lock_guard lock(impl_->mutex);
   const std::shared_ptr<const PointCloud> map = impl_->newest_map();
   nlohmann::json out = nlohmann::json::array();
-  for (const ObjectRecord& o : impl_->db.objects()) {
+  std::vector<ObjectRecord> objects = impl_->db.objects();
+  for (ObjectRecord& o : objects) {
     if (o.status != ObjectStatus::placed) continue;
-    // The others as stored now (those realigned before this one at their corrected poses): the
-    // search takes no segment that is another object's.
-    const RealignResult r =
-        relocate_object(o, *map, impl_->db.objects(), impl_->config.objects, impl_->config.segmentation);
+    // The search takes no segment that is another object's; those realigned before this one are
+    // at their stored corrected poses.
+    const RealignResult r = relocate_object(o, *map, objects, impl_->config.objects, impl_->config.segmentation);
     (void)impl_->db.commit(realign_operation(o, r, time));
+    o = *impl_->db.object(o.id);
     out.push_back({{"object", o.id}, {"found", r.found}, {"large", r.large}, {"translation_m", r.translation},
                    {"rotation_deg", r.rotation_deg}, {"fitness", r.fitness}, {"reason", r.reason}});
   }

@@ -119,10 +119,54 @@ ModelFit fit_segment_to_model(const Entity& seg, const Entity& model, const Vec3
 
 }  // namespace
 
-double overlap_share(const PointCloud& segment, const PointCloud& cloud, double distance) {
-  if (segment.empty() || cloud.empty()) return 0.0;
-  const KdTree tree(cloud.points);
-  return double(count_near(relative_to(segment, cloud.origin), tree, distance)) / double(segment.size());
+struct SegmentOwners::Owner {
+  std::int64_t id = 0;
+  std::vector<Vec3f> points;  // relative to center_
+  std::unique_ptr<KdTree> tree;
+};
+
+SegmentOwners::SegmentOwners(const std::vector<ObjectRecord>& objects, std::int64_t self, const PointCloud& map,
+                             const Vec3d& center, double reach, const AssociationConfig& config)
+    : center_(center), config_(config) {
+  double extent = 0.0;  // horizontal distance from center_ within which the candidates' points lie
+  for (const ObjectRecord& r : objects) {
+    const bool seen_there = r.status == ObjectStatus::on_ground || r.status == ObjectStatus::placed;
+    if (r.id == self || !seen_there || r.cloud.empty()) continue;
+    auto o = std::make_unique<Owner>();
+    o->id = r.id;
+    o->points = relative_to(r.cloud, center);
+    const Vec3f c = cairn::centroid(o->points);
+    double radius = 0.0;
+    for (const Vec3f& q : o->points) radius = std::max(radius, double((q - c).norm()));
+    if (double(c.head<2>().norm()) > reach + radius + config.overlap_distance) continue;
+    extent = std::max(extent, double(c.head<2>().norm()) + radius + config.overlap_distance);
+    owners_.push_back(std::move(o));
+  }
+  std::vector<Vec3f> near;  // the map where the candidates are
+  for (std::size_t i = 0; i < map.size(); ++i) {
+    const Vec3d d = map.world(i) - center;
+    if (d.head<2>().norm() <= extent) near.push_back(d.cast<float>());
+  }
+  const std::unique_ptr<KdTree> map_tree = near.empty() ? nullptr : std::make_unique<KdTree>(near);
+  std::erase_if(owners_, [&](const std::unique_ptr<Owner>& o) {  // not where its cloud is: moved, or gone unnoticed
+    return !map_tree || double(count_near(o->points, *map_tree, config.overlap_distance)) <
+                            config.min_support * double(o->points.size());
+  });
+  for (auto& o : owners_) o->tree = std::make_unique<KdTree>(o->points);
+}
+
+SegmentOwners::~SegmentOwners() = default;
+
+std::optional<std::int64_t> SegmentOwners::owner(const PointCloud& segment) const {
+  if (segment.empty() || owners_.empty()) return std::nullopt;
+  const std::vector<Vec3f> points = relative_to(segment, center_);
+  double best = 0.0;
+  std::optional<std::int64_t> id;
+  for (const auto& o : owners_) {
+    const double f = double(count_near(points, *o->tree, config_.overlap_distance)) / double(points.size());
+    if (f > best) best = f, id = o->id;
+  }
+  return best >= config_.min_overlap ? id : std::nullopt;
 }
 
 ModelFit fit_model_to_segment(const PointCloud& segment, const PointCloud& model, const AssociationConfig& config,

@@ -10,6 +10,8 @@
 //      lost (with the reason); objects out of view stay as they are.
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
+#include <optional>
 #include <vector>
 
 #include "cairn/core/point_cloud.hpp"
@@ -45,9 +47,29 @@ struct ModelFit {
   /// The fit is unambiguous: no clearly different pose comes within `margin` of its fitness.
   [[nodiscard]] bool unambiguous(double margin) const { return runner_up < fitness - margin; }
 };
-/// Share of `segment`'s points within `distance` of a point of `cloud` (0 for an empty cloud): the
-/// association's overlap (a segment sharing association.min_overlap of its points is that object).
-[[nodiscard]] double overlap_share(const PointCloud& segment, const PointCloud& cloud, double distance);
+/// Which stored object a segment already is, for a search that must not take another object's
+/// segment (relocate_object): the objects on the ground or placed (not `self`) within `reach` of
+/// `center` horizontally that the map still shows where their clouds are (min_support of their
+/// points with a map point within overlap_distance: present, as the association's step 1 finds
+/// them); a segment is the one sharing the largest share of its points, when that is at least
+/// min_overlap (the association's step 2).
+class SegmentOwners {
+ public:
+  SegmentOwners(const std::vector<ObjectRecord>& objects, std::int64_t self, const PointCloud& map, const Vec3d& center,
+                double reach, const AssociationConfig& config);
+  SegmentOwners(const SegmentOwners&) = delete;
+  SegmentOwners& operator=(const SegmentOwners&) = delete;
+  ~SegmentOwners();
+  /// The owner's id, or nullopt.
+  [[nodiscard]] std::optional<std::int64_t> owner(const PointCloud& segment) const;
+  [[nodiscard]] std::size_t size() const { return owners_.size(); }
+
+ private:
+  struct Owner;
+  std::vector<std::unique_ptr<Owner>> owners_;
+  Vec3d center_;
+  AssociationConfig config_;
+};
 
 [[nodiscard]] ModelFit fit_model_to_segment(const PointCloud& segment, const PointCloud& model,
                                             const AssociationConfig& config, bool all_faces);

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <optional>
+#include <set>
 
 #include "cairn/core/error.hpp"
 #include "cairn/core/transform.hpp"
@@ -35,17 +37,9 @@ std::vector<Vec3f> crop_around(const PointCloud& map, const Vec3d& center, doubl
   return out;
 }
 
-/// The points of the other objects that may be near `center` (within `reach` horizontally, plus
-/// their own size) and can be seen: on the ground or placed (a lost object's cloud is where it
-/// was, a grasped one is in the gripper).
-PointCloud claimed_points(const std::vector<ObjectRecord>& others, std::int64_t self, const Vec3d& center, double reach) {
-  PointCloud out;
-  out.origin = center;
-  for (const ObjectRecord& o : others) {
-    if (o.id == self || (o.status != ObjectStatus::on_ground && o.status != ObjectStatus::placed)) continue;
-    if ((o.centroid - center).head<2>().norm() > reach + object_radius(o)) continue;
-    for (std::size_t i = 0; i < o.cloud.size(); ++i) out.points.push_back((o.cloud.world(i) - center).cast<float>());
-  }
+std::string join_ids(const std::set<std::int64_t>& ids) {
+  std::string out;
+  for (std::int64_t id : ids) out += (out.empty() ? "" : ", ") + std::to_string(id);
   return out;
 }
 
@@ -158,8 +152,9 @@ RealignResult realign_object(const ObjectRecord& object, const PointCloud& map, 
   return r;
 }
 
-RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map, const std::vector<ObjectRecord>& others,
-                              const ObjectsConfig& config, const SegmentationConfig& segmentation) {
+RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map,
+                              const std::vector<ObjectRecord>& others, const ObjectsConfig& config,
+                              const SegmentationConfig& segmentation) {
   RealignResult r = realign_object(object, map, config.realign);
   if (r.found) return r;
   const double reach = object_radius(object) + config.realign.search_radius;
@@ -169,25 +164,26 @@ RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map,
   if (near.size() < 100) return r;
   const PointCloud crop = select(map, near);
   const SegmentationResult seg = segment(crop, segmentation);
-  const PointCloud claimed = claimed_points(others, object.id, object.centroid, reach);
+  const SegmentOwners owners(others, object.id, map, object.centroid, reach, config.association);
   ModelFit best;
-  int taken = 0;
+  std::set<std::int64_t> taken;  // other objects whose segments were not tried
   for (const Segment& s : seg.segments) {
-    if (s.planar || (crop.origin + s.centroid.cast<double>() - object.centroid).head<2>().norm() > config.realign.search_radius)
-      continue;
+    const double distance = (crop.origin + s.centroid.cast<double>() - object.centroid).head<2>().norm();
+    if (s.planar || distance > config.realign.search_radius) continue;
     const PointCloud points = select(crop, s.indices);
-    if (overlap_share(points, claimed, config.association.overlap_distance) >= config.association.min_overlap) {
-      ++taken;  // another object's segment (as the association's overlap would match it)
+    if (const std::optional<std::int64_t> id = owners.owner(points)) {
+      taken.insert(*id);  // another object's segment, as the association's overlap would match it
       continue;
     }
     const ModelFit f = fit_model_to_segment(points, object.cloud, config.association, true);
     if (f.fitness > best.fitness) best = f;
   }
   if (best.fitness < config.realign.search_min_fitness || best.rmse > config.realign.search_max_rmse) {
-    r.reason += format("; no segment within %.1f m fits its model (best %.0f %% of its points, min %.0f %%; rmse %.3f m, "
-                       "max %.3f m; %d other objects' segments not tried)",
+    r.reason += format("; no segment within %.1f m fits its model (best %.0f %% of its points, min %.0f %%; "
+                       "rmse %.3f m, max %.3f m)",
                        config.realign.search_radius, 100 * best.fitness, 100 * config.realign.search_min_fitness,
-                       best.rmse, config.realign.search_max_rmse, taken);
+                       best.rmse, config.realign.search_max_rmse);
+    if (!taken.empty()) r.reason += "; segments of objects " + join_ids(taken) + " not tried";
     return r;
   }
   if (!best.unambiguous(config.association.ambiguity_margin)) {

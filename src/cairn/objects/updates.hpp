@@ -49,11 +49,11 @@ struct RealignResult {
 
 /// realign_object, and when the object is not found near its prediction a search for a stone that
 /// fell or rolled: the map within search_radius of the prediction segmented, every object segment
-/// there that is not one of `others` (association.min_overlap of its points near the cloud of an
-/// object on the ground or placed; the object itself and lost or grasped ones do not count) fitted
-/// to the model from each face turned down (fit_model_to_segment), the best one
-/// (search_min_fitness, search_max_rmse) refined by realign_object from where it was found;
-/// reported as large.
+/// there that is not another object's (SegmentOwners over `others`: present where their clouds
+/// are, the segment mostly on one of them) fitted to the model from each face turned down
+/// (fit_model_to_segment), the best one (search_min_fitness, search_max_rmse) refined by
+/// realign_object from where it was found; reported as large. The reason names the objects whose
+/// segments were not tried.
 [[nodiscard]] RealignResult relocate_object(const ObjectRecord& object, const PointCloud& map,
                                             const std::vector<ObjectRecord>& others, const ObjectsConfig& config,
                                             const SegmentationConfig& segmentation);
