@@ -212,14 +212,9 @@ TEST(Targets, AStoneReachesItsFarthestPointAndTheGapIsToTheNearestPoint) {
   EXPECT_TRUE(place_is_free(place, 5.0, 1, {}, c));
 }
 
-/// Removes a database file with its WAL and shared-memory files.
-void remove_db(const std::filesystem::path& f) {
-  for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(f.string() + side);
-}
-
 std::filesystem::path fresh_db(const std::string& name) {
   const auto f = std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()) + ".db");
-  remove_db(f);
+  test::remove_db(f);
   return f;
 }
 
@@ -271,7 +266,7 @@ TEST(Experiment, Exp1RegistersPlansGraspsAndDetectsEveryFailure) {
     const ObjectDatabase db(c.tracking.database, ObjectDatabase::Mode::read_only);
     EXPECT_EQ(db.integrity_check(), "ok");
   }
-  remove_db(c.tracking.database);
+  test::remove_db(c.tracking.database);
   // The report of this run (issue #18 item 4): every instant captured, and it opens.
   ASSERT_EQ(r.scene.snapshots.size(), 2u + (c.tracking.simulation.site.stones.count > 2 ? 1u : 0u));  // before, move 2, round 1
   EXPECT_FALSE(r.scene.trajectory.empty());
@@ -330,7 +325,7 @@ TEST(Experiment, PileIsClearedOneStoneAtATimeReSegmentingAfterEveryMove) {
   c.registration_timeout = c.registration_period;  // one attempt: 6 s of scanning before the database is filled
 #endif
   const ExperimentResult r = run_experiment(c);
-  remove_db(c.tracking.database);
+  test::remove_db(c.tracking.database);
   for (const std::string& n : r.notes) std::printf("note: %s\n", n.c_str());
   const int stones = c.tracking.simulation.site.stones.count;
   EXPECT_EQ(r.stones, stones);

@@ -12,6 +12,7 @@
 
 #include "cairn/eval/tracker.hpp"
 #include "cairn/objects/object_db.hpp"
+#include "support/test_data.hpp"
 
 namespace cairn::eval {
 namespace {
@@ -23,7 +24,7 @@ TEST(ObjectTracking, MovedStonesAreFoundAgainAndTheGraspTakesOnlyTheStone) {
   c.rounds = 1;
   c.simulation = sim::scenario_config("exp2", sim::default_real_mesh_dir());
   c.database = std::filesystem::temp_directory_path() / ("cairn_test_tracking_" + std::to_string(::getpid()) + ".db");
-  for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(c.database.string() + side);
+  test::remove_db(c.database);
 #if defined(__SANITIZE_ADDRESS__)
   // The same path, short: one move, scans of a few seconds (the figures are asserted in Release).
   c.max_moves_per_round = 1;
@@ -49,7 +50,7 @@ TEST(ObjectTracking, MovedStonesAreFoundAgainAndTheGraspTakesOnlyTheStone) {
       EXPECT_EQ(h[3].cause == PoseCause::lost, !m.found);
     }
   }
-  std::filesystem::remove(c.database);
+  test::remove_db(c.database);
   if (!figures) return;
   EXPECT_GE(r.stones_tracked, 5);  // of 7 (measured 6: one stone is not segmented on its own)
   int found = 0;

@@ -29,6 +29,11 @@ inline bool in_ci() {
   return ci != nullptr && *ci != '\0' && std::string(ci) != "false";
 }
 
+/// Removes an SQLite database file with its WAL and shared-memory files.
+inline void remove_db(const std::filesystem::path& f) {
+  for (const char* side : {"", "-wal", "-shm"}) std::filesystem::remove(f.string() + side);
+}
+
 /// A fresh, empty temporary directory for one test, private to this process: ctest runs the
 /// tests of one executable as parallel processes, so a shared name let one test delete the
 /// directory another was reading. Every directory handed out is removed when the process exits.

@@ -827,7 +827,8 @@ std::vector<Vec2d> target_places(const Vec2d& axis, double heading, double dista
   // out while a stone half a spacing wide (the widest a row is laid out for) fits at the row's
   // middle with target_clearance to spare.
   std::vector<double> rows = {distance};
-  for (int k = 1; distance - k * c.row_spacing >= c.row_min_distance - 1e-9; ++k) rows.push_back(distance - k * c.row_spacing);
+  for (int k = 1; distance - k * c.row_spacing >= c.row_min_distance - 1e-9; ++k)
+    rows.push_back(distance - k * c.row_spacing);
   for (int k = 1; distance + (k + 0.5) * c.row_spacing + c.target_clearance <= R + 1e-9; ++k)
     rows.push_back(distance + k * c.row_spacing);
   for (const double d : rows) {

@@ -62,7 +62,6 @@ class SegmentOwners {
   ~SegmentOwners();
   /// The owner's id, or nullopt.
   [[nodiscard]] std::optional<std::int64_t> owner(const PointCloud& segment) const;
-  [[nodiscard]] std::size_t size() const { return owners_.size(); }
 
  private:
   struct Owner;
