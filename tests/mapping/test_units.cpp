@@ -436,6 +436,127 @@ TEST(SmoothSurface, QuadraticKeepsCurvedSurfacesWherePlanesFlattenThem) {
   EXPECT_NEAR(unweighted_height.mean, 0.01, 0.0005);
 }
 
+// Incremental smoothing (SurfaceSmoother): after a local change it refits only the blocks near
+// it and gives the from-scratch result (up to the rounding of sums taken in another order); a
+// change it is not told of leaves stale surfaces (what the LocalMap's bookkeeping must prevent).
+PointCloud smoothing_scene(std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  std::uniform_int_distribution<int> seen(1, 6);
+  PointCloud c;
+  c.origin = Vec3d(500.0, -300.0, 10.0);
+  std::vector<float> counts;
+  for (int x = 0; x < 160; ++x)
+    for (int y = 0; y < 160; ++y) {  // ground, 3 cm grid over 4.8 m, a dome of radius 0.6 m at (2.4, 2.4)
+      const float px = 0.03f * float(x), py = 0.03f * float(y);
+      const float r2 = (px - 2.4f) * (px - 2.4f) + (py - 2.4f) * (py - 2.4f);
+      const float h = r2 < 0.36f ? std::sqrt(0.36f - r2) : 0.0f;
+      c.points.emplace_back(px + 0.3f * noise(rng), py + 0.3f * noise(rng), h + noise(rng));
+      counts.push_back(float(seen(rng)));
+    }
+  c.fields.push_back({"count", counts});
+  return c;
+}
+
+double max_point_difference(const PointCloud& a, const PointCloud& b) {
+  if (a.size() != b.size()) return INFINITY;
+  double d = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, double((a.points[i] - b.points[i]).norm()));
+  return d;
+}
+
+/// `c` without its points within `radius` of `centre`; their positions appended to `removed`.
+PointCloud without_ball(const PointCloud& c, const Vec3f& centre, float radius, std::vector<Vec3f>& removed) {
+  PointCloud out;
+  out.origin = c.origin;
+  std::vector<float> counts;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    if ((c.points[i] - centre).norm() < radius) {
+      removed.push_back(c.points[i]);
+      continue;
+    }
+    out.points.push_back(c.points[i]);
+    counts.push_back(c.fields[0].values[i]);
+  }
+  out.fields.push_back({"count", counts});
+  return out;
+}
+
+TEST(SurfaceSmoother, RefitsOnlyNearChangesAndAgreesWithSmoothingFromScratch) {
+  constexpr double kRounding = 1e-5;  // [m]: sums in another order
+  const LocalMapConfig config;
+  SurfaceSmoother smoother(config);
+  const PointCloud scene = smoothing_scene(3);
+  EXPECT_LE(max_point_difference(smoother.smooth(scene, std::nullopt), smooth_surface(scene, config)), kRounding);
+  EXPECT_TRUE(smoother.last().full);
+  EXPECT_EQ(smoother.last().refitted, smoother.last().blocks);
+
+  // A grasp: the dome's points gone.
+  std::vector<Vec3f> changed;
+  const PointCloud grasped = without_ball(scene, Vec3f(2.4f, 2.4f, 0.0f), 0.65f, changed);
+  ASSERT_GT(changed.size(), 1000u);
+  const PointCloud a = smoother.smooth(grasped, changed);
+  EXPECT_FALSE(smoother.last().full);
+  EXPECT_LT(smoother.last().refitted, smoother.last().blocks / 5);
+  EXPECT_LT(smoother.last().tree_points, grasped.size() / 3);
+  EXPECT_LE(max_point_difference(a, smooth_surface(grasped, config)), kRounding);
+
+  // A partial sweep: one corner's voxels seen once more (new counts, moved centroids).
+  PointCloud swept = grasped;
+  changed.clear();
+  for (std::size_t i = 0; i < swept.size(); ++i)
+    if (swept.points[i].x() > 3.6f && swept.points[i].y() > 3.6f) {
+      changed.push_back(swept.points[i]);
+      swept.points[i].z() += 0.002f;
+      swept.fields[0].values[i] += 1.0f;
+      changed.push_back(swept.points[i]);
+    }
+  const PointCloud b = smoother.smooth(swept, changed);
+  EXPECT_FALSE(smoother.last().full);
+  EXPECT_LE(max_point_difference(b, smooth_surface(swept, config)), kRounding);
+
+  // Not told of a change, it keeps the stale surfaces there: the result differs from scratch.
+  PointCloud unannounced = swept;
+  for (Vec3f& p : unannounced.points)  // raised 1.5 cm within their blocks (6 cm cubes from z = 0)
+    if (p.x() < 1.0f && p.y() < 1.0f && p.z() > 0.0f && p.z() < 0.04f) p.z() += 0.015f;
+  const PointCloud stale = smoother.smooth(unannounced, std::vector<Vec3f>{});
+  EXPECT_GT(max_point_difference(stale, smooth_surface(unannounced, config)), 0.002);
+
+  // Points where no block was and no change was announced: it smooths everything again.
+  PointCloud grown = swept;
+  grown.points.emplace_back(-2.0f, -2.0f, 0.0f);
+  grown.fields[0].values.push_back(1.0f);
+  EXPECT_LE(max_point_difference(smoother.smooth(grown, std::vector<Vec3f>{}), smooth_surface(grown, config)), kRounding);
+  EXPECT_TRUE(smoother.last().full);
+}
+
+// The local map tells its smoother every change (inserts into old and new voxels, erases, crops,
+// clear): each snapshot equals the from-scratch snapshot of a copy of the map (a copy starts
+// without kept surfaces).
+TEST(LocalMap, IncrementalSnapshotsEqualSnapshotsFromScratch) {
+  constexpr double kRounding = 1e-5;
+  LocalMap map({.R_map = 3.0});
+  PointCloud scene = smoothing_scene(5);
+  scene.fields.clear();
+  map.insert(scene);
+  const auto from_scratch = [](const LocalMap& m) { return LocalMap(m).snapshot(); };
+  EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);
+  EXPECT_GT(map.remove_sphere(scene.origin + Vec3d(2.4, 2.4, 0.2), 0.7), 500u);  // a grasp
+  EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);
+  PointCloud again = smoothing_scene(6);  // a second sweep over one side: old voxels and new ones
+  again.fields.clear();
+  std::erase_if(again.points, [](const Vec3f& p) { return p.x() < 3.0f; });
+  for (Vec3f& p : again.points) p.x() += 0.5f;
+  map.insert(again);
+  const PointCloud swept = map.snapshot();
+  EXPECT_LE(max_point_difference(swept, from_scratch(map)), kRounding);
+  EXPECT_GT(map.crop(scene.origin + Vec3d(1.0, 1.0, 0.0)), 1000u);  // the robot-centric cylinder
+  EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);
+  map.clear();
+  map.insert(again);
+  EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);
+}
+
 // ---- Mapper input checks ------------------------------------------------------------------------
 
 TEST(Mapper, BadInputGivesClearErrorsOrWarnings) {

@@ -14,18 +14,9 @@
 #include "cairn/core/point_cloud.hpp"
 #include "cairn/mapping/config.hpp"
 #include "cairn/mapping/map_edit.hpp"
+#include "cairn/mapping/surface_smoothing.hpp"
 
 namespace cairn {
-
-/// Moving-least-squares smoothing of a voxel-grid cloud (config.smoothing_*): every point whose
-/// neighbours within smoothing_radius form a surface (curvature λ0/(λ0+λ1+λ2) below
-/// smoothing_max_curvature; edges and corners are kept) is moved onto the weighted least-squares
-/// plane of the neighbourhood, or with smoothing_quadratic onto a quadratic height field over that
-/// plane (no flattening of curved stone surfaces). Weights: Gaussian in the distance (σ = radius/2)
-/// times the "count" field when present (points per voxel). One surface is fitted per cube of side
-/// smoothing_block (around the mean of its points) and moves all of them; 0 fits one per point.
-/// Then re-voxelised at config.voxel.res_voxel (merged duplicates). TBB-parallel, deterministic.
-[[nodiscard]] PointCloud smooth_surface(const PointCloud& cloud, const LocalMapConfig& config);
 
 class LocalMap {
  public:
@@ -48,6 +39,8 @@ class LocalMap {
   /// then smoothed (config.smoothing_radius > 0, see smooth_surface). The "count" scalar field
   /// holds the number of points per voxel (unsmoothed snapshots only). Computed once per state
   /// of the map: asking again before the next insert, erase or clear returns the same cloud.
+  /// Smoothing is incremental (SurfaceSmoother): only where voxels changed since the last
+  /// snapshot are surfaces fitted again.
   [[nodiscard]] PointCloud snapshot() const;
   [[nodiscard]] std::size_t num_voxels() const { return voxels_.size(); }
   [[nodiscard]] const LocalMapConfig& config() const { return config_; }
@@ -57,6 +50,10 @@ class LocalMap {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // relative to origin_
     std::uint32_t count = 0;
     std::uint64_t key = 0;
+    // What the last snapshot showed of this voxel (its centroid and count; count 0: nothing), to
+    // tell the smoother where the map changed. Written by snapshots only, under the cache's lock.
+    mutable Vec3f shown = Vec3f::Zero();
+    mutable std::uint32_t shown_count = 0;
   };
   [[nodiscard]] std::uint64_t key_of(const Eigen::Vector3d& p_rel) const;
   void add(const Eigen::Vector3d& p_world);
@@ -65,6 +62,9 @@ class LocalMap {
   std::size_t filter(Keep keep);
   void rebuild_index();
   [[nodiscard]] PointCloud compute_snapshot() const;
+  /// The voxel centroids with at least n_min points, with their counts; `changed` gets the
+  /// positions where this differs from what the last snapshot showed (and the record is updated).
+  [[nodiscard]] PointCloud voxel_centroids(std::vector<Vec3f>& changed) const;
 
   /// The last snapshot and the map revision it was taken at (smoothing is the expensive part of
   /// a snapshot, and several stages ask for the same state). A copy or move of the map, and the
@@ -73,20 +73,30 @@ class LocalMap {
     std::mutex mutex;
     std::uint64_t revision = 0;
     std::shared_ptr<const PointCloud> cloud;
+    // The smoother keeps the surfaces of the last snapshot; `vanished`: where shown voxels were
+    // erased since (it is reset, and the next snapshot smoothed from scratch, when that list
+    // outgrows the map: nobody took a snapshot for a long while).
+    std::unique_ptr<SurfaceSmoother> smoother;
+    std::vector<Vec3f> vanished;
     SnapshotCache() = default;
     SnapshotCache(const SnapshotCache& /*other*/) {}
-    SnapshotCache(SnapshotCache&& other) noexcept { other.cloud.reset(); }  // the moved-from map is empty
+    SnapshotCache(SnapshotCache&& other) noexcept { other.reset(); }  // the moved-from map is empty
     SnapshotCache& operator=(const SnapshotCache& /*other*/) {
       const std::lock_guard lock(mutex);
-      cloud.reset();
+      reset();
       return *this;
     }
     SnapshotCache& operator=(SnapshotCache&& other) noexcept {
-      cloud.reset();
-      other.cloud.reset();
+      reset();
+      other.reset();
       return *this;
     }
     ~SnapshotCache() = default;
+    void reset() {
+      cloud.reset();
+      smoother.reset();
+      vanished.clear();
+    }
   };
 
   LocalMapConfig config_;
