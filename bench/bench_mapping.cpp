@@ -110,7 +110,9 @@ void remove_a_stone(cairn::LocalMap& m, const cairn::PointCloud& c) {
 }
 
 void sweep_a_quarter(cairn::LocalMap& m, const cairn::PointCloud& c) {
-  const cairn::Vec3d centre = c.origin + c.points.front().cast<double>();
+  Eigen::AlignedBox3d box;
+  for (const cairn::Vec3f& p : c.points) box.extend(p.cast<double>());
+  const cairn::Vec3d centre = c.origin + box.center();  // a quarter of the site: x and y above it
   cairn::PointCloud quarter;
   quarter.origin = c.origin;
   std::mt19937 rng(2);

@@ -532,7 +532,8 @@ TEST(SurfaceSmoother, RefitsOnlyNearChangesAndAgreesWithSmoothingFromScratch) {
 
 // The local map tells its smoother every change (inserts into old and new voxels, erases, crops,
 // clear): each snapshot equals the from-scratch snapshot of a copy of the map (a copy starts
-// without kept surfaces).
+// without kept surfaces), and after the grasp, the sweep and the crop it was smoothed
+// incrementally (not a full pass, which would hide missing bookkeeping).
 TEST(LocalMap, IncrementalSnapshotsEqualSnapshotsFromScratch) {
   constexpr double kRounding = 1e-5;
   LocalMap map({.R_map = 3.0});
@@ -541,8 +542,11 @@ TEST(LocalMap, IncrementalSnapshotsEqualSnapshotsFromScratch) {
   map.insert(scene);
   const auto from_scratch = [](const LocalMap& m) { return LocalMap(m).snapshot(); };
   EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);
+  EXPECT_TRUE(map.last_smoothing().full);
   EXPECT_GT(map.remove_sphere(scene.origin + Vec3d(2.4, 2.4, 0.2), 0.7), 500u);  // a grasp
   EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);
+  EXPECT_FALSE(map.last_smoothing().full);
+  EXPECT_LT(map.last_smoothing().refitted, map.last_smoothing().blocks / 4);
   PointCloud again = smoothing_scene(6);  // a second sweep over one side: old voxels and new ones
   again.fields.clear();
   std::erase_if(again.points, [](const Vec3f& p) { return p.x() < 3.0f; });
@@ -550,8 +554,10 @@ TEST(LocalMap, IncrementalSnapshotsEqualSnapshotsFromScratch) {
   map.insert(again);
   const PointCloud swept = map.snapshot();
   EXPECT_LE(max_point_difference(swept, from_scratch(map)), kRounding);
-  EXPECT_GT(map.crop(scene.origin + Vec3d(1.0, 1.0, 0.0)), 1000u);  // the robot-centric cylinder
+  EXPECT_FALSE(map.last_smoothing().full);
+  EXPECT_GT(map.crop(scene.origin + Vec3d(2.6, 2.4, 0.0)), 500u);  // the robot-centric cylinder: the corners
   EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);
+  EXPECT_FALSE(map.last_smoothing().full);
   map.clear();
   map.insert(again);
   EXPECT_LE(max_point_difference(map.snapshot(), from_scratch(map)), kRounding);

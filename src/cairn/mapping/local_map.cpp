@@ -59,7 +59,6 @@ std::size_t LocalMap::filter(Keep keep) {
     if (v.shown_count > 0) cache_.vanished.push_back(v.shown);
     return true;
   });
-  if (cache_.vanished.size() > voxels_.size() + before) cache_.reset();  // smoothed from scratch next time
   if (voxels_.size() != before) {
     rebuild_index();
     ++revision_;
@@ -133,17 +132,26 @@ PointCloud LocalMap::compute_snapshot() const {
   const Stopwatch sw;
   std::vector<Vec3f> changed = std::move(cache_.vanished);
   cache_.vanished.clear();
-  PointCloud raw = voxel_centroids(changed);
+  PointCloud raw = voxel_centroids(changed);  // the record of what was shown is updated here
   if (config_.smoothing_radius <= 0.0) return raw;
-  if (!cache_.smoother) {
-    cache_.smoother = std::make_unique<SurfaceSmoother>(config_);
-    return cache_.smoother->smooth(raw, std::nullopt);
+  const bool from_scratch = !cache_.smoother;
+  if (from_scratch) cache_.smoother = std::make_unique<SurfaceSmoother>(config_);
+  PointCloud smoothed;
+  try {
+    smoothed = cache_.smoother->smooth(raw, from_scratch ? std::nullopt : std::optional<std::span<const Vec3f>>(changed));
+  } catch (...) {  // the changes are consumed: the kept surfaces would be stale
+    cache_.smoother.reset();
+    throw;
   }
-  PointCloud smoothed = cache_.smoother->smooth(raw, changed);
   const SurfaceSmoother::Stats& st = cache_.smoother->last();
   spdlog::debug("local map snapshot: {} voxel positions changed, {} of {} surfaces refitted, {:.0f} ms", changed.size(),
                 st.refitted, st.blocks, sw.elapsed_ms());
   return smoothed;
+}
+
+SurfaceSmoother::Stats LocalMap::last_smoothing() const {
+  const std::lock_guard lock(cache_.mutex);
+  return cache_.smoother ? cache_.smoother->last() : SurfaceSmoother::Stats{};
 }
 
 }  // namespace cairn

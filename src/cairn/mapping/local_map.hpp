@@ -42,6 +42,8 @@ class LocalMap {
   /// Smoothing is incremental (SurfaceSmoother): only where voxels changed since the last
   /// snapshot are surfaces fitted again.
   [[nodiscard]] PointCloud snapshot() const;
+  /// What the smoothing of the last snapshot did (refitted surfaces, full pass or not).
+  [[nodiscard]] SurfaceSmoother::Stats last_smoothing() const;
   [[nodiscard]] std::size_t num_voxels() const { return voxels_.size(); }
   [[nodiscard]] const LocalMapConfig& config() const { return config_; }
 
@@ -51,7 +53,8 @@ class LocalMap {
     std::uint32_t count = 0;
     std::uint64_t key = 0;
     // What the last snapshot showed of this voxel (its centroid and count; count 0: nothing), to
-    // tell the smoother where the map changed. Written by snapshots only, under the cache's lock.
+    // tell the smoother where the map changed. Written by snapshot() (under the cache's lock), so
+    // a snapshot must not run while another thread copies the map.
     mutable Vec3f shown = Vec3f::Zero();
     mutable std::uint32_t shown_count = 0;
   };
@@ -74,8 +77,7 @@ class LocalMap {
     std::uint64_t revision = 0;
     std::shared_ptr<const PointCloud> cloud;
     // The smoother keeps the surfaces of the last snapshot; `vanished`: where shown voxels were
-    // erased since (it is reset, and the next snapshot smoothed from scratch, when that list
-    // outgrows the map: nobody took a snapshot for a long while).
+    // erased since (each shown voxel at most once, so no longer than that snapshot).
     std::unique_ptr<SurfaceSmoother> smoother;
     std::vector<Vec3f> vanished;
     SnapshotCache() = default;

@@ -41,11 +41,18 @@ struct LocalSurface {
   }
 };
 
+/// The surface fitted for each block, by block key (sorted).
+struct FittedBlocks {
+  std::vector<std::uint64_t> keys;
+  std::vector<LocalSurface> surfaces;
+};
+
 }  // namespace smoothing_detail
 
 namespace {
 
 using smoothing_detail::kHeightTerms;
+using smoothing_detail::FittedBlocks;
 using smoothing_detail::LocalSurface;
 
 struct SmoothingScratch {
@@ -186,14 +193,15 @@ Vec3f block_centre(const Vec3f& p, double block) {
 
 }  // namespace
 
-/// Changed positions (old and new ones: two per moved point) per point of the cloud above which a
-/// full pass is cheaper than the bookkeeping (measured on experiment 1's snapshots, docs/mapping.md).
+/// Changed positions (old and new ones: two per moved point) per point of the cloud from which on
+/// everything is refitted. Chosen from experiment 1's snapshots (docs/mapping.md): at ~25 % (the
+/// carry scans, 40–70 % of the surfaces refitted) the incremental pass took 0.7–1.0 s against
+/// 0.9–1.4 s for a full one; the rescans' ~100 % would pay the bookkeeping for nothing.
 constexpr double kMaxChangedShare = 0.5;
 
 struct SurfaceSmoother::State {
   Vec3d origin = Vec3d::Zero();
-  std::vector<std::uint64_t> keys;     // sorted block keys
-  std::vector<smoothing_detail::LocalSurface> surfaces;  // the surface fitted for each
+  FittedBlocks fitted;
 };
 
 SurfaceSmoother::SurfaceSmoother(LocalMapConfig config) : config_(std::move(config)) {}
@@ -226,6 +234,7 @@ BlockOrdered in_block_order(const PointCloud& cloud, const Blocks& blocks) {
 }
 
 constexpr std::uint32_t kRefit = CellMap::kAbsent;
+constexpr std::size_t kBlocksPerTask = 256;  // TBB grain: ~1 ms of fits per task
 
 /// Blocks that keep a surface of `keys` (kept[g]: its index there; kRefit: fitted again) and the
 /// points the refitted ones read (`read`, indices into the block-ordered points). Nothing is kept
@@ -244,7 +253,7 @@ Reuse find_reusable(const BlockOrdered& sorted, const Blocks& blocks, std::span<
   const CellMap stale = cells_around(changed, side, 1), reach = cells_around(changed, side, 2);
   Reuse r{.kept = std::vector<std::uint32_t>(blocks.size(), kRefit), .read = {}};
   std::atomic<bool> unexplained = false;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 1024), [&](const auto& range) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), kBlocksPerTask), [&](const auto& range) {
     for (std::size_t g = range.begin(); g != range.end(); ++g) {
       if (stale.find(cell_of(block_centre(sorted.points[blocks.starts[g]], block), side)) != CellMap::kAbsent) continue;
       const auto it = std::lower_bound(keys.begin(), keys.end(), blocks.key(g));
@@ -258,64 +267,77 @@ Reuse find_reusable(const BlockOrdered& sorted, const Blocks& blocks, std::span<
   return r;
 }
 
-}  // namespace
-
-PointCloud SurfaceSmoother::smooth(const PointCloud& cloud, std::optional<std::span<const Vec3f>> changed) {
-  stats_ = {};
-  if (cloud.empty()) {
-    state_.reset();
-    PointCloud empty;
-    empty.origin = cloud.origin;
-    return empty;
-  }
-  const double block = config_.smoothing_block;
-  const Blocks blocks = group_into_blocks(cloud.points, block);
-  const BlockOrdered sorted = in_block_order(cloud, blocks);
-  // Where most of the cloud changed (a long sweep), finding what did not costs more than it saves.
-  const bool may_reuse = changed && state_ && block > 0.0 && state_->origin == cloud.origin &&
-                         double(changed->size()) < kMaxChangedShare * double(cloud.size());
-  const Reuse reuse = may_reuse ? find_reusable(sorted, blocks, state_->keys, *changed, config_) : Reuse{};
-  // The neighbour searches run over what the refits read (everything in a full pass).
-  BlockOrdered searched;
+/// The points the refits read, for their neighbour searches (a full pass searches all of them).
+BlockOrdered points_read(const BlockOrdered& sorted, const Reuse& reuse) {
+  BlockOrdered s;
   for (const std::uint32_t k : reuse.read) {
-    searched.points.push_back(sorted.points[k]);
-    if (!sorted.counts.empty()) searched.counts.push_back(sorted.counts[k]);
+    s.points.push_back(sorted.points[k]);
+    if (!sorted.counts.empty()) s.counts.push_back(sorted.counts[k]);
   }
-  const BlockOrdered& s = reuse.kept.empty() ? sorted : searched;
-  const KdTree tree(s.points);
-  auto next = std::make_unique<State>();
-  next->origin = cloud.origin;
-  next->keys.resize(blocks.size());
-  next->surfaces.resize(blocks.size());
-  PointCloud out;
-  out.origin = cloud.origin;
-  out.points = cloud.points;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 256), [&](const auto& r) {
+  return s;
+}
+
+/// Every block's surface, fitted on `searched` or, where `kept` says so, taken from `old`; the
+/// points moved onto it in `out` (where the surface is valid).
+FittedBlocks fit_and_project(const Blocks& blocks, const BlockOrdered& sorted, const BlockOrdered& searched,
+                             std::span<const std::uint32_t> kept, const FittedBlocks* old, const LocalMapConfig& c,
+                             PointCloud& out) {
+  const KdTree tree(searched.points);
+  const float* counts = searched.counts.empty() ? nullptr : searched.counts.data();
+  FittedBlocks fitted;
+  fitted.keys.resize(blocks.size());
+  fitted.surfaces.resize(blocks.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), kBlocksPerTask), [&](const auto& r) {
     SmoothingScratch scratch;
     for (std::size_t g = r.begin(); g != r.end(); ++g) {
       const std::size_t from = blocks.starts[g], to = blocks.starts[g + 1];
       LocalSurface f;
-      if (!reuse.kept.empty() && reuse.kept[g] != kRefit) {
-        f = state_->surfaces[reuse.kept[g]];
+      if (!kept.empty() && kept[g] != kRefit) {
+        f = old->surfaces[kept[g]];
       } else {
         Eigen::Vector3d anchor = Eigen::Vector3d::Zero();
         for (std::size_t k = from; k < to; ++k) anchor += sorted.points[k].cast<double>();
         anchor /= double(to - from);
-        f = fit_local_surface(s.points, s.counts.empty() ? nullptr : s.counts.data(), tree, anchor, config_, scratch);
+        f = fit_local_surface(searched.points, counts, tree, anchor, c, scratch);
       }
-      next->keys[g] = blocks.key(g);
-      next->surfaces[g] = f;
+      fitted.keys[g] = blocks.key(g);
+      fitted.surfaces[g] = f;
       if (!f.valid) continue;
       for (std::size_t k = from; k < to; ++k)
-        out.points[blocks.order[k].second] = f.project(sorted.points[k], config_.smoothing_radius);
+        out.points[blocks.order[k].second] = f.project(sorted.points[k], c.smoothing_radius);
     }
   });
-  stats_ = {.blocks = blocks.size(),
-            .refitted = reuse.kept.empty() ? blocks.size() : std::size_t(std::count(reuse.kept.begin(), reuse.kept.end(), kRefit)),
-            .tree_points = s.points.size(),
-            .full = reuse.kept.empty()};
-  if (block > 0.0) state_ = std::move(next);
-  else state_.reset();
+  return fitted;
+}
+
+}  // namespace
+
+PointCloud SurfaceSmoother::smooth(const PointCloud& cloud, std::optional<std::span<const Vec3f>> changed) {
+  stats_ = {};
+  const double block = config_.smoothing_block;
+  if (cloud.empty() || !(block > 0.0)) state_.reset();  // nothing to keep (block 0: a fit per point)
+  if (cloud.empty()) {
+    PointCloud empty;
+    empty.origin = cloud.origin;
+    return empty;
+  }
+  const Blocks blocks = group_into_blocks(cloud.points, block);
+  const BlockOrdered sorted = in_block_order(cloud, blocks);
+  // Where much of the cloud changed (a long sweep), finding what did not costs more than it saves.
+  const bool may_reuse = changed && state_ && state_->origin == cloud.origin &&
+                         double(changed->size()) < kMaxChangedShare * double(cloud.size());
+  const Reuse reuse = may_reuse ? find_reusable(sorted, blocks, state_->fitted.keys, *changed, config_) : Reuse{};
+  PointCloud out;
+  out.origin = cloud.origin;
+  out.points = cloud.points;
+  const BlockOrdered read = reuse.kept.empty() ? BlockOrdered{} : points_read(sorted, reuse);
+  const BlockOrdered& searched = reuse.kept.empty() ? sorted : read;
+  FittedBlocks fitted = fit_and_project(blocks, sorted, searched, reuse.kept, state_ ? &state_->fitted : nullptr, config_, out);
+  stats_.tree_points = searched.points.size();
+  stats_.blocks = blocks.size();
+  stats_.full = reuse.kept.empty();
+  stats_.refitted = stats_.full ? blocks.size() : std::size_t(std::count(reuse.kept.begin(), reuse.kept.end(), kRefit));
+  if (block > 0.0) state_ = std::make_unique<State>(State{.origin = cloud.origin, .fitted = std::move(fitted)});
   return voxel_downsample(out, {.res_voxel = config_.voxel.res_voxel, .n_min = 1});
 }
 

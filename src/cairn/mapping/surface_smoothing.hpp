@@ -30,8 +30,11 @@ namespace cairn {
 /// that can matter lies within smoothing_block/2 + smoothing_radius (per axis) of the cube's centre:
 /// on a grid of that side, in the cell of the centre or one of its 26 neighbours. Blocks whose
 /// centre cell is next to a cell holding a changed position are refitted (a superset of the blocks
-/// that must be), the rest reused. The result is smooth_surface's up to the rounding of sums taken
-/// in another order (neighbour lists come from a tree over other points).
+/// that must be), the rest reused. The result is smooth_surface's up to rounding: neighbour lists
+/// come from a tree over other points (sums in another order; a neighbour within float rounding
+/// of the radius may be found by one search and not the other), and re-voxelising can turn such a
+/// difference into another merge of two points. So a snapshot depends, at that level, on which
+/// changes were smoothed together, not only on the map's state.
 class SurfaceSmoother {
  public:
   struct Stats {
